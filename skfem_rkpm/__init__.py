@@ -1,0 +1,26 @@
+"""skfem-rkpm: the Lagrangian reproducing kernel particle method on scikit-fem."""
+
+from .assembly import Assembler, isotropic_tangent, layout
+from .basis import RKBasis, RKFacetBasis, local_spacing
+from .constraints import linear_solve, solve, transformation
+from .kernels import cubic_spline, quartic_spline
+from .shape import ShapeTable, SingularMomentError, rk_shape_functions
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Assembler",
+    "RKBasis",
+    "RKFacetBasis",
+    "ShapeTable",
+    "SingularMomentError",
+    "cubic_spline",
+    "isotropic_tangent",
+    "layout",
+    "linear_solve",
+    "local_spacing",
+    "quartic_spline",
+    "rk_shape_functions",
+    "solve",
+    "transformation",
+]

@@ -1,0 +1,186 @@
+"""Vectorized assembly of gradient forms for RK and FEM bases alike.
+
+scikit-fem's assembly loops in Python over every pair of local functions,
+which is fine for FEM (4-9 functions per cell) and slow for RK bases
+(30-130).  The built-in mechanics only need forms in which test and trial
+functions enter through their gradients,
+
+    K[(a,c), (b,d)] = ∫ ∂_l Ñ_a  C_{c l d m}  ∂_m N_b  dΩ,      f[(a,c)] = ∫ ∂_l Ñ_a P_{c l} dΩ,
+
+(``Ñ``: test functions, VCI-corrected for RK; ``N``: trial functions) plus
+the mass-type form ``∫ Ñ_a s N_b``.  The :class:`Assembler` reads any basis
+as per-cell scalar local functions, computes all local matrices with
+``einsum`` and scatters them into a CSR matrix whose sparsity pattern and
+scatter map are computed once.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from skfem.element import ElementVector
+
+__all__ = ["Layout", "layout", "Assembler", "isotropic_tangent"]
+
+#: cells per einsum block: bounds the memory of the local matrices
+CELLS_PER_BLOCK = 2048
+
+
+@dataclass
+class Layout:
+    """A basis seen as scalar local functions per cell.
+
+    Attributes
+    ----------
+    element_nodes : ndarray, shape (nloc, nelems)
+        Scalar function (particle / scalar dof) of each local slot.
+    values : ndarray, shape (nloc, nelems, nqp)
+    trial_grads, test_grads : ndarray, shape (dim, nloc, nelems, nqp)
+    dx : ndarray, shape (nelems, nqp)
+        Quadrature weights times Jacobians.
+    ncomp : int
+        Field components; dof of (slot node I, component c) is ``ncomp*I + c``.
+    nscalar : int
+        Number of scalar functions.
+    """
+
+    element_nodes: np.ndarray
+    values: np.ndarray
+    trial_grads: np.ndarray
+    test_grads: np.ndarray
+    dx: np.ndarray
+    ncomp: int
+    nscalar: int
+
+    @property
+    def N(self):
+        return self.ncomp * self.nscalar
+
+    @property
+    def dim(self):
+        return self.trial_grads.shape[0]
+
+
+def layout(basis):
+    """The :class:`Layout` of an RK basis or of a scikit-fem ``CellBasis``.
+
+    scikit-fem vector bases must use ``ElementVector``, whose dof ``dim*s + c``
+    belongs to scalar dof ``s`` and component ``c``.
+    """
+    if hasattr(basis, "element_nodes"):  # RKBasis
+        return Layout(basis.element_nodes, basis.values, basis.trial.grads,
+                      basis.grads, basis.dx, basis.ncomp, basis.nnodes)
+    ncomp = basis.elem.dim if isinstance(basis.elem, ElementVector) else 1
+    first = basis.element_dofs[::ncomp]
+    for c in range(1, ncomp):
+        if not np.array_equal(basis.element_dofs[c::ncomp], first + c):
+            raise ValueError("vector basis dofs are not interleaved (dim*s + c); "
+                             "use skfem.ElementVector")
+    if np.any(first % ncomp):
+        raise ValueError("vector basis dofs are not interleaved (dim*s + c)")
+    fields = [basis.basis[ncomp * k][0] for k in range(first.shape[0])]
+    if ncomp > 1:
+        values = np.array([f[0] for f in fields])
+        grads = np.array([f.grad[0] for f in fields]).transpose(1, 0, 2, 3)
+    else:
+        values = np.array([np.asarray(f) for f in fields])
+        grads = np.array([f.grad for f in fields]).transpose(1, 0, 2, 3)
+    return Layout(first // ncomp, values, grads, grads, basis.dx, ncomp,
+                  basis.N // ncomp)
+
+
+def isotropic_tangent(lam, mu, dim):
+    """``C_{c l d m} = λ δ_cl δ_dm + μ (δ_cd δ_lm + δ_cm δ_ld)``, shape (dim,)*4."""
+    I = np.eye(dim)
+    return (lam * np.einsum("cl,dm->cldm", I, I)
+            + mu * (np.einsum("cd,lm->cldm", I, I) + np.einsum("cm,ld->cldm", I, I)))
+
+
+class Assembler:
+    """Assemble gradient forms on one basis with a cached sparsity pattern.
+
+    Parameters
+    ----------
+    basis : RKBasis or skfem CellBasis
+    """
+
+    def __init__(self, basis):
+        self.layout = L = layout(basis)
+        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
+        dofs = (c * L.element_nodes[:, None, :]
+                + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)
+        self.element_dofs = dofs
+        nbf = nloc * c
+        rows = np.broadcast_to(dofs[:, None, :], (nbf, nbf, nelems)).ravel()
+        cols = np.broadcast_to(dofs[None, :, :], (nbf, nbf, nelems)).ravel()
+        key = rows.astype(np.int64) * L.N + cols
+        unique, scatter = np.unique(key, return_inverse=True)
+        self._scatter = scatter.astype(np.int32 if len(unique) < 2**31 else np.int64)
+        self._pattern_rows = (unique // L.N).astype(np.int32)
+        self._pattern_cols = (unique % L.N).astype(np.int32)
+        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(
+            self._pattern_rows, minlength=L.N))])
+        self.nnz = len(unique)
+
+    @property
+    def N(self):
+        return self.layout.N
+
+    def _blocks(self):
+        nelems = self.layout.element_nodes.shape[1]
+        for start in range(0, nelems, CELLS_PER_BLOCK):
+            yield slice(start, min(start + CELLS_PER_BLOCK, nelems))
+
+    def _to_csr(self, local):
+        """Scatter local matrices (nbf, nbf, nelems) into the cached CSR pattern."""
+        data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
+        return sp.csr_matrix((data, self._pattern_cols, self.indptr),
+                             shape=(self.N, self.N))
+
+    def bilinear(self, C):
+        """``∫ ∂_l Ñ_a C_{c l d m} ∂_m N_b``.
+
+        Parameters
+        ----------
+        C : ndarray, shape (c, dim, c, dim) or (c, dim, c, dim, nelems, nqp)
+            Tangent (scalar fields: ``c = 1``).
+        """
+        L = self.layout
+        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
+        C = np.asarray(C, dtype=float)
+        local = np.empty((nloc, c, nloc, c, nelems))
+        for s in self._blocks():
+            Cw = (C[..., s, :] if C.ndim == 6 else C[..., None, None]) * L.dx[s]
+            local[..., s] = np.einsum("laEq,cldmEq,mbEq->acbdE",
+                                      L.test_grads[:, :, s], Cw,
+                                      L.trial_grads[:, :, s], optimize=True)
+        return self._to_csr(local.reshape(nloc * c, nloc * c, nelems))
+
+    def mass(self, density=1.0):
+        """``∫ Ñ_a ρ N_b δ_cd`` (values are not corrected by VCI)."""
+        L = self.layout
+        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
+        rho = np.broadcast_to(np.asarray(density, dtype=float), L.dx.shape)
+        scalar = np.empty((nloc, nloc, nelems))
+        for s in self._blocks():
+            scalar[..., s] = np.einsum("aEq,bEq,Eq->abE", L.values[:, s],
+                                       L.values[:, s], rho[s] * L.dx[s],
+                                       optimize=True)
+        local = np.einsum("abe,cd->acbde", scalar, np.eye(c))
+        return self._to_csr(local.reshape(nloc * c, nloc * c, nelems))
+
+    def linear(self, P):
+        """``f[(a,c)] = ∫ ∂_l Ñ_a P_{c l}``; ``P`` has shape (c, dim, nelems, nqp)."""
+        L = self.layout
+        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
+        P = np.asarray(P, dtype=float).reshape(c, L.dim, nelems, -1)
+        local = np.einsum("laEq,clEq,Eq->acE", L.test_grads, P, L.dx, optimize=True)
+        return np.bincount(self.element_dofs.ravel(),
+                           weights=local.reshape(nloc * c, nelems).ravel(),
+                           minlength=self.N)
+
+    def gradient(self, u):
+        """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp)."""
+        L = self.layout
+        U = np.asarray(u).reshape(L.nscalar, L.ncomp)[L.element_nodes]  # (nloc, nelems, c)
+        return np.einsum("maEq,aEc->cmEq", L.trial_grads, U, optimize=True)

@@ -1,0 +1,25 @@
+import numpy as np
+import pytest
+from skfem import MeshQuad, MeshTri
+
+
+def perturbed(mesh, amplitude, seed=0):
+    """Move interior vertices randomly by up to ``amplitude`` x the spacing."""
+    rng = np.random.default_rng(seed)
+    p = mesh.p.copy()
+    inner = ~np.isin(np.arange(mesh.nvertices), mesh.boundary_nodes())
+    h = np.diff(np.unique(mesh.p[0]))[0]
+    p[:, inner] += amplitude * h * rng.uniform(-1, 1, (2, inner.sum()))
+    return type(mesh)(p, mesh.t).with_defaults()
+
+
+@pytest.fixture
+def distorted_quads():
+    t = np.linspace(0.0, 1.0, 11)
+    return perturbed(MeshQuad.init_tensor(t, t), 0.3)
+
+
+@pytest.fixture
+def distorted_tris():
+    t = np.linspace(0.0, 1.0, 11)
+    return perturbed(MeshTri.init_tensor(t, t), 0.3)

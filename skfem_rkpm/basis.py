@@ -21,25 +21,12 @@ from skfem.assembly.basis import AbstractBasis
 from skfem.element import DiscreteField
 
 from .integration import cell_geometry, facet_geometry, vci_gradients
+from .meshes import local_spacing
 from .shape import rk_shape_functions
 
-__all__ = ["RKBasis", "RKFacetBasis", "local_spacing"]
+__all__ = ["RKBasis", "RKFacetBasis"]
 
 INTEGRATION_SCHEMES = ("vci", "gauss")
-
-
-def local_spacing(mesh):
-    """Nodal spacing ``h_I``: mean length of the mesh edges meeting at vertex I."""
-    if mesh.dim() == 1:
-        edges = mesh.t
-    elif mesh.dim() == 2:
-        edges = mesh.facets
-    else:
-        edges = mesh.edges
-    length = np.linalg.norm(mesh.p[:, edges[0]] - mesh.p[:, edges[1]], axis=0)
-    total = np.bincount(edges.ravel(), np.tile(length, 2), minlength=mesh.nvertices)
-    count = np.bincount(edges.ravel(), minlength=mesh.nvertices)
-    return total / np.maximum(count, 1)
 
 
 def _padded(table, nelems, nqp, grads):

@@ -112,3 +112,23 @@ def test_linear_patch_fem(element, request):
     basis = Basis(m, e, intorder=2)
     d = solve_patch(basis, FacetBasis(m, e, intorder=2), linear_field)
     np.testing.assert_allclose(d, linear_field(m.p).T.ravel(), atol=1e-13)
+
+
+@pytest.mark.parametrize("kind", ["tri", "quad"])
+def test_linear_patch_vci_on_graded_gmsh_meshes(kind):
+    """Unstructured gmsh meshes graded 10:1 towards a corner."""
+    from skfem_rkpm.meshes import gmsh_rectangle
+
+    m = gmsh_rectangle(1.0, 1.0, 0.1, kind=kind, h_corner=0.01)
+    err, gerr = rk_error(m, linear_field, 1, 2.0, "vci", 2)
+    assert err < 1e-11 and gerr < 1e-9
+    err_g, gerr_g = rk_error(m, linear_field, 1, 2.0, "gauss", 2)
+    assert gerr_g > 1e-4
+
+
+def test_linear_patch_vci_on_graded_tensor_mesh():
+    from skfem_rkpm.meshes import graded_rectangle
+
+    m = graded_rectangle(1.0, 1.0, 12, 12, ratio=20.0)
+    err, gerr = rk_error(m, linear_field, 1, 2.0, "vci", 2)
+    assert err < 1e-12 and gerr < 1e-10

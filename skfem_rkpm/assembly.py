@@ -107,20 +107,51 @@ class Assembler:
     def __init__(self, basis):
         self.layout = L = layout(basis)
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
-        dofs = (c * L.element_nodes[:, None, :]
-                + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)
-        self.element_dofs = dofs
-        nbf = nloc * c
-        rows = np.broadcast_to(dofs[:, None, :], (nbf, nbf, nelems)).ravel()
-        cols = np.broadcast_to(dofs[None, :, :], (nbf, nbf, nelems)).ravel()
-        key = rows.astype(np.int64) * L.N + cols
-        unique, scatter = np.unique(key, return_inverse=True)
-        self._scatter = scatter.astype(np.int32 if len(unique) < 2**31 else np.int64)
-        self._pattern_rows = (unique // L.N).astype(np.int32)
-        self._pattern_cols = (unique % L.N).astype(np.int32)
-        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(
-            self._pattern_rows, minlength=L.N))])
-        self.nnz = len(unique)
+        self.element_dofs = (c * L.element_nodes[:, None, :]
+                             + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)
+        self._build_pattern()
+
+    def _build_pattern(self):
+        """CSR pattern of the vector matrix and the scatter map of local entries.
+
+        The scalar pattern (particle x particle) comes from a sparse product
+        of the cell-particle incidence; each local entry finds its place by
+        binary search in the sorted scalar keys, and scalar entries expand to
+        ``c x c`` blocks analytically.
+        """
+        L = self.layout
+        c, (nloc, nelems), n = L.ncomp, L.element_nodes.shape, L.nscalar
+        cells = np.broadcast_to(np.arange(nelems), (nloc, nelems))
+        incidence = sp.csr_matrix((np.ones(cells.size), (cells.ravel(),
+                                   L.element_nodes.ravel())), shape=(nelems, n))
+        pattern = (incidence.T @ incidence).tocsr()
+        pattern.sort_indices()
+        indptr_s, cols_s = pattern.indptr, pattern.indices
+        rows_s = np.repeat(np.arange(n), np.diff(indptr_s))
+        keys = rows_s.astype(np.int64) * n + cols_s
+        I = L.element_nodes[:, None, :].astype(np.int64)
+        J = L.element_nodes[None, :, :]
+        position = np.searchsorted(keys, (I * n + J).ravel()).reshape(nloc, nloc, nelems)
+        # vector CSR: scalar row I becomes rows cI..cI+c-1, each holding the
+        # c x c blocks of the scalar row in column order
+        length = np.diff(indptr_s)
+        start = indptr_s[:-1]
+        a = np.arange(c)[None, :, None, None, None]
+        b = np.arange(c)[None, None, None, :, None]
+        Ie = L.element_nodes[:, None, None, None, :]
+        pos = position[:, None, :, None, :]
+        scatter = (c * c * start[Ie] + a * c * length[Ie]
+                   + c * (pos - start[Ie]) + b)
+        dtype = np.int32 if c * c * len(keys) < 2**31 else np.int64
+        self._scatter = scatter.reshape(-1).astype(dtype)
+        self.nnz = c * c * len(keys)
+        self.indptr = np.concatenate([[0], np.cumsum(np.repeat(c * length, c))])
+        # column indices: vector row cI+a repeats the block columns of row I
+        block_cols = (c * cols_s[:, None] + np.arange(c)[None, :]).ravel()
+        row_length = np.repeat(c * length, c)
+        row_source = np.repeat(c * start, c)
+        offset = np.arange(self.nnz) - np.repeat(self.indptr[:-1], row_length)
+        self._pattern_cols = block_cols[np.repeat(row_source, row_length) + offset]
 
     @property
     def N(self):

@@ -108,7 +108,7 @@ def solve_problem(problem, basis):
     return d, l2, energy
 
 
-def convergence_study(problem, methods, levels):
+def convergence_study(problem, methods, levels, repeat=1):
     """Solve ``problem`` with every method on every refinement level.
 
     Parameters
@@ -118,6 +118,8 @@ def convergence_study(problem, methods, levels):
         ``{label: mesh -> basis}``.
     levels : sequence of int
         Refinement levels passed to ``problem.mesh``.
+    repeat : int
+        Time each run this many times and keep the fastest.
 
     Returns
     -------
@@ -130,10 +132,12 @@ def convergence_study(problem, methods, levels):
     for level in levels:
         mesh = problem.mesh(level)
         for label, make in methods.items():
-            start = time.perf_counter()
-            basis = make(mesh)
-            _, l2, energy = solve_problem(problem, basis)
-            seconds = time.perf_counter() - start
+            seconds = np.inf
+            for _ in range(repeat):
+                start = time.perf_counter()
+                basis = make(mesh)
+                _, l2, energy = solve_problem(problem, basis)
+                seconds = min(seconds, time.perf_counter() - start)
             records.append(dict(method=label, level=level, dofs=basis.N,
                                 h=_largest_cell(mesh), l2=l2, energy=energy,
                                 seconds=seconds))

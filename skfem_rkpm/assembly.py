@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem.element import ElementVector
 
-__all__ = ["Layout", "layout", "Assembler", "isotropic_tangent"]
+__all__ = ["Layout", "layout", "axisymmetric_layout", "Assembler", "isotropic_tangent"]
 
 #: cells per einsum block: bounds the memory of the local matrices
 CELLS_PER_BLOCK = 2048
@@ -58,6 +58,7 @@ class Layout:
 
     @property
     def dim(self):
+        """Rows of the (possibly extended) gradient."""
         return self.trial_grads.shape[0]
 
 
@@ -96,16 +97,39 @@ def isotropic_tangent(lam, mu, dim):
             + mu * (np.einsum("cd,lm->cldm", I, I) + np.einsum("cm,ld->cldm", I, I)))
 
 
+def axisymmetric_layout(L, radius):
+    """Append the hoop row ``N/R`` to the gradients and weigh ``dx`` by ``2πR``.
+
+    The extended gradient of a vector field then holds ``u_r/R`` (the hoop
+    strain) at row ``(c=0, l=dim)``; volumes and forces refer to the full ring.
+    """
+    R = np.asarray(radius)
+    if np.any(R <= 0):
+        raise ValueError("axisymmetric model: quadrature points need radius > 0 "
+                         f"(smallest is {R.min():.3g}); the axis is x = 0")
+    hoop = (L.values / R)[None]
+    return Layout(L.element_nodes, L.values,
+                  np.concatenate([L.trial_grads, hoop]),
+                  np.concatenate([L.test_grads, hoop]),
+                  2.0 * np.pi * R * L.dx, L.ncomp, L.nscalar)
+
+
 class Assembler:
     """Assemble gradient forms on one basis with a cached sparsity pattern.
 
     Parameters
     ----------
     basis : RKBasis or skfem CellBasis
+    axisymmetric : bool
+        Add the hoop row ``N/R`` (see :func:`axisymmetric_layout`); x is the
+        radius.
     """
 
-    def __init__(self, basis):
+    def __init__(self, basis, axisymmetric=False):
         self.layout = L = layout(basis)
+        if axisymmetric:
+            radius = np.asarray(basis.global_coordinates())[0]
+            self.layout = L = axisymmetric_layout(L, radius)
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         self.element_dofs = (c * L.element_nodes[:, None, :]
                              + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)

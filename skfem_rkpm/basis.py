@@ -211,11 +211,15 @@ class RKBasis(_RKBase):
         Particle positions; default the mesh vertices.
     radius : float or ndarray, optional
         Support radii given explicitly (overrides ``support``).
+    axisymmetric : bool
+        The problem is axisymmetric with ``x`` the radius: VCI then imposes
+        its constraints in the measure ``R dR dZ``.  The basis itself (and
+        ``dx`` for scikit-fem forms) is unchanged.
     """
 
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
                  support_shape="radial", intorder=4, integration="vci",
-                 nodes=None, radius=None):
+                 nodes=None, radius=None, axisymmetric=False):
         if integration not in INTEGRATION_SCHEMES:
             raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
                              f"not {integration!r}")
@@ -239,6 +243,7 @@ class RKBasis(_RKBase):
         self.order, self.kernel = order, kernel
         self.support_shape, self.intorder = support_shape, intorder
         self.integration = integration
+        self.axisymmetric = axisymmetric
 
         geometry = cell_geometry(mesh, intorder)
         xq = geometry.global_coordinates().reshape(mesh.dim(), -1)
@@ -251,7 +256,7 @@ class RKBasis(_RKBase):
             test_grads = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
-                nodes, self.radius, order, kernel, support_shape)
+                nodes, self.radius, order, kernel, support_shape, axisymmetric)
         self._setup(mesh, geometry, table, test_grads, nodes, vector)
 
     def _shape_table(self, x, nodes=None, gradients=True):

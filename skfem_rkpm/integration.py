@@ -68,7 +68,8 @@ def _pair_monomials(table, x, nodes, scale, exps):
 
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
-                  nodes, radius, order, kernel="cubic", support="radial"):
+                  nodes, radius, order, kernel="cubic", support="radial",
+                  axisymmetric=False):
     """Test-function gradients corrected for variational consistency.
 
     Parameters
@@ -86,6 +87,10 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     order : int
         Basis order ``n``; constraints are imposed for monomials of degree
         up to ``n - 1``.
+    axisymmetric : bool
+        Impose the constraints in the axisymmetric measure ``R dR dZ``
+        (``x[0]`` is the radius): ``∫ ∇̃Ψ p R = ∫_Γ Ψ p n R - ∫ Ψ ∇(p R)``,
+        which makes homogeneous axisymmetric stress states exact.
 
     Returns
     -------
@@ -109,6 +114,8 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
 
     phi, _ = _window((x[:, rows] - nodes[:, cols]).T, radius[cols], window, support)
     p, dp = _pair_monomials(table, x, nodes, scale, exps)
+    if axisymmetric:
+        weights, wb = weights * x[0], wb * xb[0]
     w = weights[rows]
 
     # A_I = ∫ φ_I p pᵀ
@@ -131,6 +138,11 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                                          + table.grads[k] * p[:, a]),
                               minlength=nnodes)
             )
+    if axisymmetric:  # ∂R/∂R = 1: the extra term -∫ Ψ_I p_α dR dZ
+        w_plain = (weights / x[0])[rows]
+        for a in range(m):
+            rhs[:, 0, a] -= np.bincount(cols, w_plain * table.values * p[:, a],
+                                        minlength=nnodes)
     covered = np.bincount(cols, minlength=nnodes)
     det = np.linalg.det(A)
     bad = np.flatnonzero((covered < m) | ~(np.abs(det) > 1e-14 * np.abs(A[:, 0, 0]) ** m))

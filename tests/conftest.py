@@ -1,3 +1,10 @@
+import os
+
+# one BLAS thread: small dense solves are 100x slower when OpenBLAS threads
+# compete with other processes for the 2 cores, and timings get noisy
+for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(variable, "1")
+
 import numpy as np
 import pytest
 from skfem import MeshQuad, MeshTri

@@ -1,0 +1,1 @@
+"""Finite-strain solid mechanics on any basis: kinematics, materials, problems."""

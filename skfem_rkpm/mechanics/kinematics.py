@@ -1,0 +1,76 @@
+"""Deformation gradients of plane strain, axisymmetric and 3D models.
+
+The assembler delivers the (extended) displacement gradient ``H[c, l]`` at
+every quadrature point from the material gradients of the shape functions,
+built once (Eq. 3.30: ``F = I + Σ_I d_I ⊗ ∂Ψ_I/∂X``).  Every model is carried
+in 3x3 algebra:
+
+* ``plane_strain``: ``F = [[F_2x2, 0], [0, 1]]``;
+* ``axisymmetric`` (x = R, y = Z): ``F_θθ = 1 + u_r/R`` from the hoop row;
+* ``3d``: the full 3x3 gradient.
+
+:func:`entries` lists which 3x3 entry ``(i, J)`` each assembler entry
+``(c, l)`` stands for, so stresses and tangents go back the same way.
+"""
+
+import numpy as np
+
+__all__ = ["MODELS", "entries", "deformation_gradient", "to_assembler",
+           "spatial_gradients"]
+
+MODELS = ("plane_strain", "axisymmetric", "3d")
+
+
+def entries(model):
+    """Pairs ``((c, l), (i, J))``: assembler entry and the 3x3 entry it holds."""
+    if model == "plane_strain":
+        return [((c, l), (c, l)) for c in range(2) for l in range(2)]
+    if model == "axisymmetric":
+        return [((c, l), (c, l)) for c in range(2) for l in range(2)] + [((0, 2), (2, 2))]
+    if model == "3d":
+        return [((c, l), (c, l)) for c in range(3) for l in range(3)]
+    raise ValueError(f"model must be one of {MODELS}, not {model!r}")
+
+
+def deformation_gradient(H, model):
+    """``F = I + H`` in 3x3 form, shape (n, 3, 3), from ``H`` (c, l, nelems, nqp)."""
+    n = H[0, 0].size
+    F = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    for (c, l), (i, J) in entries(model):
+        F[:, i, J] += H[c, l].ravel()
+    return F
+
+
+def to_assembler(P, A, model, shape):
+    """Stress (n, 3, 3) and tangent (n, 3, 3, 3, 3) in assembler layout.
+
+    Returns ``P_ext`` (c, l, nelems, nqp) and ``A_ext`` (c, l, c, l, nelems, nqp)
+    (``A_ext`` is None if ``A`` is).
+    """
+    pairs = entries(model)
+    ncomp = 3 if model == "3d" else 2
+    nrows = 3 if model != "plane_strain" else 2
+    P_ext = np.zeros((ncomp, nrows) + shape)
+    for (c, l), (i, J) in pairs:
+        P_ext[c, l] = P[:, i, J].reshape(shape)
+    if A is None:
+        return P_ext, None
+    A_ext = np.zeros((ncomp, nrows, ncomp, nrows) + shape)
+    for (c, l), (i, J) in pairs:
+        for (d, m), (k, L) in pairs:
+            A_ext[c, l, d, m] = A[:, i, J, k, L].reshape(shape)
+    return P_ext, A_ext
+
+
+def spatial_gradients(grad_X, F):
+    """Spatial gradients of Lagrangian shape functions, Eq. (3.29).
+
+    ``∂Ψ/∂x_i = ∂Ψ/∂X_j F⁻¹_ji`` with ``F⁻¹`` from Eq. (3.30).
+
+    Parameters
+    ----------
+    grad_X : ndarray, shape (dim, ..., n)
+        Material gradients at n points.
+    F : ndarray, shape (n, dim, dim)
+    """
+    return np.einsum("j...n,nji->i...n", grad_X, np.linalg.inv(F))

@@ -1,0 +1,235 @@
+"""Incremental-iterative Newton-Raphson with adaptive load steps.
+
+Each step raises the load factor ``t`` (0 → 1) and solves
+
+    f_int(d) = f_ext(t) + Cᵀ λ,      C d = g(t),
+
+where ``C`` holds the rows of the transformation ``Λᵀ`` (Eq. 3.33) of the
+prescribed nodal dofs, so displacements are prescribed on nodal values as in
+Eq. (3.37).  Every iteration solves the linearized saddle-point system with
+the consistent tangent.  A step that does not converge (too many
+iterations, a diverging residual, an inverted element, a failed return map)
+is cut in half and retried; everything converged so far is kept.
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .constraints import nodal_constraint, solve_constrained, weak_constraint
+from .mechanics.problem import InvertedElementError
+
+__all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "newton_steps"]
+
+
+@dataclass
+class Prescribed:
+    """A displacement component prescribed on a named boundary.
+
+    Parameters
+    ----------
+    boundary : str
+        Name in ``mesh.boundaries``.
+    component : int
+        Displacement component (0: x or r, 1: y or z, 2: z).
+    values : float or callable
+        Final value, reached linearly in the load factor ``t``; or
+        ``values(t, x)`` giving the value at node coordinates ``x`` (dim, n).
+    method : {"nodal", "weak"}
+        Nodal values through the transformation method (Eq. 3.37), or weakly
+        along the boundary with boundary multipliers
+        (:func:`skfem_rkpm.constraints.weak_constraint`).
+    """
+
+    boundary: str
+    component: int
+    values: object = 0.0
+    method: str = "nodal"
+
+    @property
+    def name(self):
+        return f"{self.boundary}[{self.component}]"
+
+    def constraint(self, basis):
+        if self.method == "nodal":
+            return nodal_constraint(basis, self.boundary, self.component)
+        if self.method == "weak":
+            return weak_constraint(basis, self.boundary, self.component)
+        raise ValueError(f"method must be 'nodal' or 'weak', not {self.method!r}")
+
+    def at(self, t, x):
+        if callable(self.values):
+            return np.broadcast_to(np.asarray(self.values(t, x), float), (x.shape[1],))
+        return np.full(x.shape[1], t * float(self.values))
+
+
+@dataclass
+class StepRecord:
+    """What one converged step did."""
+
+    step: int
+    t: float
+    iterations: int
+    residuals: list
+    energies: list
+    seconds: float
+    reactions: dict = field(default_factory=dict)
+    cutbacks: int = 0
+
+
+@dataclass
+class Result:
+    """Outcome of :func:`newton_steps`: converged steps, their solutions, status."""
+
+    d: np.ndarray
+    history: list
+    solutions: list
+    completed: bool
+    message: str = ""
+
+
+class NonConvergence(RuntimeError):
+    """A step failed even after the allowed cut-backs."""
+
+
+def _projector(C):
+    """Removes from a force vector its component in range(Cᵀ) (the reactions)."""
+    if C.shape[0] == 0:
+        return lambda r: r
+    lu = splu((C @ C.T).tocsc())
+    return lambda r: r - C.T @ lu.solve(C @ r)
+
+
+def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
+                 max_iterations=20, max_cutbacks=8, log=None, d0=None):
+    """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
+
+    Parameters
+    ----------
+    problem : SolidProblem
+    prescribed : sequence of Prescribed
+        Nodal displacement conditions.
+    load : callable, optional
+        ``t -> f_ext`` (generalized load vector of length ``problem.N``).
+    steps : int or sequence of float
+        Number of equal steps, or the increasing load factors to reach.
+    tol : float
+        Relative residual tolerance (the paper's 1e-6): the out-of-balance
+        force, reactions removed, over ``max(|f_int|, |f_ext|)``.
+    max_iterations : int
+        Newton iterations before a step is cut back.
+    max_cutbacks : int
+        Halvings allowed per step.
+    log : callable, optional
+        Called with one line of text per iteration and per step.
+    d0 : ndarray, optional
+        Initial coefficients (default zero).
+
+    Returns
+    -------
+    Result
+        ``completed`` is False if a step failed; ``history`` and
+        ``solutions`` then hold everything converged before.
+    """
+    targets = (np.linspace(0.0, 1.0, steps + 1)[1:] if np.isscalar(steps)
+               else np.asarray(steps, dtype=float))
+    log = log or (lambda line: None)
+    groups = [p.constraint(problem.basis) for p in prescribed]
+    C = sp.vstack([c.C for c in groups] or [sp.csr_matrix((0, problem.N))], format="csr")
+    project = _projector(C)
+
+    def g(t):
+        return np.concatenate([c.R @ p.at(t, c.coordinates)
+                               for p, c in zip(prescribed, groups)] or [np.zeros(0)])
+
+    def f_ext(t):
+        return np.zeros(problem.N) if load is None else load(t)
+
+    d = np.zeros(problem.N) if d0 is None else np.array(d0, dtype=float)
+    history, solutions = [], []
+    t_done, step_index = 0.0, 0
+    for target in targets:
+        while t_done < target - 1e-14:
+            dt = target - t_done
+            for cut in range(max_cutbacks + 1):
+                t = t_done + dt
+                start = time.perf_counter()
+                try:
+                    d_new, ev, lam, its, res, en = _newton(
+                        problem, d, t, C, g(t), f_ext(t), project, tol,
+                        max_iterations, log)
+                except (NonConvergence, InvertedElementError, RuntimeError,
+                        np.linalg.LinAlgError) as err:
+                    log(f"step {step_index + 1}: t = {t:.6g} failed ({err}); "
+                        "cutting the step")
+                    dt /= 2.0
+                    last_error = err
+                    continue
+                break
+            else:
+                message = (f"step {step_index + 1} to t = {target:.6g} failed after "
+                           f"{max_cutbacks} cut-backs: {last_error}")
+                log(message)
+                return Result(d, history, solutions, False, message)
+            problem.commit(ev)
+            d, t_done = d_new, t
+            step_index += 1
+            record = StepRecord(step_index, t, its, res, en,
+                                time.perf_counter() - start,
+                                _reactions(prescribed, groups, lam), cut)
+            history.append(record)
+            solutions.append(d.copy())
+            log(f"step {step_index}: t = {t:.6g} converged in {its} iterations "
+                f"(residual {res[-1]:.2e}, {record.seconds:.3f} s)")
+    return Result(d, history, solutions, True, "completed")
+
+
+def _newton(problem, d, t, C, g, f_ext, project, tol, max_iterations, log):
+    """Newton iterations of one step; returns the converged data or raises."""
+    d = d.copy()
+    residuals, energies = [], []
+    first_energy = None
+    for it in range(max_iterations + 1):
+        ev = problem.evaluate(d)
+        r = f_ext - ev.f_int
+        ref = max(np.linalg.norm(ev.f_int), np.linalg.norm(f_ext), 1e-300)
+        rel = np.linalg.norm(project(r)) / ref
+        constraint_gap = np.abs(g - C @ d).max(initial=0.0)
+        if not np.isfinite(rel):
+            raise NonConvergence("residual is not finite")
+        residuals.append(rel)
+        if it > 0:
+            log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}")
+        if rel <= tol and constraint_gap <= 1e-12 * max(np.abs(g).max(initial=0), 1.0):
+            lam = _reaction_forces(C, r)
+            return d, ev, lam, it, residuals, energies
+        if it == max_iterations:
+            break
+        if it > 2 and rel > 1e3 * residuals[1]:
+            raise NonConvergence(f"residual diverges ({rel:.3e})")
+        delta, _ = solve_constrained(ev.K, r, C, g - C @ d)
+        energy = abs(delta @ r)
+        first_energy = energy if first_energy is None else first_energy
+        energies.append(energy / first_energy if first_energy > 0 else 0.0)
+        d += delta
+    raise NonConvergence(f"no convergence in {max_iterations} iterations "
+                         f"(residual {residuals[-1]:.3e})")
+
+
+def _reaction_forces(C, r):
+    """Nodal reactions λ with ``Cᵀ λ`` the best fit of ``f_int - f_ext = -r``."""
+    if C.shape[0] == 0:
+        return np.zeros(0)
+    return splu((C @ C.T).tocsc()).solve(C @ -r)
+
+
+def _reactions(prescribed, groups, lam):
+    """Resultant reaction force of each prescribed condition (its component)."""
+    out, start = {}, 0
+    for p, c in zip(prescribed, groups):
+        out[p.name] = float(lam[start:start + len(c)] @ c.weights)
+        start += len(c)
+    return out

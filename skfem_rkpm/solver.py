@@ -104,7 +104,8 @@ def _projector(C):
 
 
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
-                 max_iterations=20, max_cutbacks=8, log=None, d0=None):
+                 max_iterations=20, max_cutbacks=8, log=None, d0=None,
+                 contributions=()):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -127,6 +128,12 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         Called with one line of text per iteration and per step.
     d0 : ndarray, optional
         Initial coefficients (default zero).
+    contributions : sequence, optional
+        Extra nonlinear forces such as contact.  Each has
+        ``evaluate(d, t) -> (f, K)`` (a force added to the internal force and
+        its tangent), ``commit()`` (accept the last evaluated state) and
+        ``resultants() -> dict`` (named force vectors, e.g. tool reactions,
+        recorded with each step).
 
     Returns
     -------
@@ -160,7 +167,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 try:
                     d_new, ev, lam, its, res, en = _newton(
                         problem, d, t, C, g(t), f_ext(t), project, tol,
-                        max_iterations, log)
+                        max_iterations, log, contributions)
                 except (NonConvergence, InvertedElementError, RuntimeError,
                         np.linalg.LinAlgError) as err:
                     log(f"step {step_index + 1}: t = {t:.6g} failed ({err}); "
@@ -175,11 +182,14 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 log(message)
                 return Result(d, history, solutions, False, message)
             problem.commit(ev)
+            reactions = _reactions(prescribed, groups, lam)
+            for contribution in contributions:
+                contribution.commit()
+                reactions.update(contribution.resultants())
             d, t_done = d_new, t
             step_index += 1
             record = StepRecord(step_index, t, its, res, en,
-                                time.perf_counter() - start,
-                                _reactions(prescribed, groups, lam), cut)
+                                time.perf_counter() - start, reactions, cut)
             history.append(record)
             solutions.append(d.copy())
             log(f"step {step_index}: t = {t:.6g} converged in {its} iterations "
@@ -187,15 +197,20 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     return Result(d, history, solutions, True, "completed")
 
 
-def _newton(problem, d, t, C, g, f_ext, project, tol, max_iterations, log):
+def _newton(problem, d, t, C, g, f_ext, project, tol, max_iterations, log,
+            contributions=()):
     """Newton iterations of one step; returns the converged data or raises."""
     d = d.copy()
     residuals, energies = [], []
     first_energy = None
     for it in range(max_iterations + 1):
         ev = problem.evaluate(d)
-        r = f_ext - ev.f_int
-        ref = max(np.linalg.norm(ev.f_int), np.linalg.norm(f_ext), 1e-300)
+        f_int, K = ev.f_int, ev.K
+        for contribution in contributions:
+            f_c, K_c = contribution.evaluate(d, t)
+            f_int, K = f_int + f_c, K + K_c
+        r = f_ext - f_int
+        ref = max(np.linalg.norm(f_int), np.linalg.norm(f_ext), 1e-300)
         rel = np.linalg.norm(project(r)) / ref
         constraint_gap = np.abs(g - C @ d).max(initial=0.0)
         if not np.isfinite(rel):
@@ -210,7 +225,7 @@ def _newton(problem, d, t, C, g, f_ext, project, tol, max_iterations, log):
             break
         if it > 2 and rel > 1e3 * residuals[1]:
             raise NonConvergence(f"residual diverges ({rel:.3e})")
-        delta, _ = solve_constrained(ev.K, r, C, g - C @ d)
+        delta, _ = solve_constrained(K, r, C, g - C @ d)
         energy = abs(delta @ r)
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)

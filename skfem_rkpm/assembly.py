@@ -224,15 +224,30 @@ class Assembler:
         local = np.einsum("abe,cd->acbde", scalar, np.eye(c))
         return self._to_csr(local.reshape(nloc * c, nloc * c, nelems))
 
-    def linear(self, P):
-        """``f[(a,c)] = ∫ ∂_l Ñ_a P_{c l}``; ``P`` has shape (c, dim, nelems, nqp)."""
+    def cell_vectors(self, P, test=True):
+        """Per-cell vectors ``∫_e ∂_l N_a P_{c l}``, shape (nloc * c, nelems).
+
+        ``test=False`` uses the trial gradients instead of the test gradients.
+        """
         L = self.layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         P = np.asarray(P, dtype=float).reshape(c, L.dim, nelems, -1)
-        local = np.einsum("laEq,clEq,Eq->acE", L.test_grads, P, L.dx, optimize=True)
-        return np.bincount(self.element_dofs.ravel(),
-                           weights=local.reshape(nloc * c, nelems).ravel(),
+        grads = L.test_grads if test else L.trial_grads
+        local = np.einsum("laEq,clEq,Eq->acE", grads, P, L.dx, optimize=True)
+        return local.reshape(nloc * c, nelems)
+
+    def scatter(self, local):
+        """Sum per-cell vectors (nloc * c, nelems) into a global vector."""
+        return np.bincount(self.element_dofs.ravel(), weights=local.ravel(),
                            minlength=self.N)
+
+    def linear(self, P):
+        """``f[(a,c)] = ∫ ∂_l Ñ_a P_{c l}``; ``P`` has shape (c, dim, nelems, nqp)."""
+        return self.scatter(self.cell_vectors(P))
+
+    def outer(self, u, w):
+        """Matrix of the per-cell rank-one blocks ``u_e ⊗ w_e`` (nloc * c, nelems)."""
+        return self._to_csr(u[:, None, :] * w[None, :, :])
 
     def gradient(self, u):
         """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp)."""

@@ -95,12 +95,20 @@ class NonConvergence(RuntimeError):
     """A step failed even after the allowed cut-backs."""
 
 
-def _projector(C):
-    """Removes from a force vector its component in range(Cᵀ) (the reactions)."""
-    if C.shape[0] == 0:
-        return lambda r: r
-    lu = splu((C @ C.T).tocsc())
-    return lambda r: r - C.T @ lu.solve(C @ r)
+class _Reactions:
+    """Least-squares split of a force into reactions ``Cᵀ λ`` and the rest."""
+
+    def __init__(self, C):
+        self.C = C
+        self.lu = splu((C @ C.T).tocsc()) if C.shape[0] else None
+
+    def multipliers(self, force):
+        """λ with ``Cᵀ λ`` closest to ``force``."""
+        return self.lu.solve(self.C @ force) if self.lu else np.zeros(0)
+
+    def out_of_balance(self, force):
+        """``force`` minus its reaction part."""
+        return force - self.C.T @ self.multipliers(force) if self.lu else force
 
 
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
@@ -146,7 +154,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     log = log or (lambda line: None)
     groups = [p.constraint(problem.basis) for p in prescribed]
     C = sp.vstack([c.C for c in groups] or [sp.csr_matrix((0, problem.N))], format="csr")
-    project = _projector(C)
+    reactions_fit = _Reactions(C)
 
     def g(t):
         return np.concatenate([c.R @ p.at(t, c.coordinates)
@@ -166,7 +174,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 start = time.perf_counter()
                 try:
                     d_new, ev, lam, its, res, en = _newton(
-                        problem, d, t, C, g(t), f_ext(t), project, tol,
+                        problem, d, t, C, g(t), f_ext(t), reactions_fit, tol,
                         max_iterations, log, contributions)
                 except (NonConvergence, InvertedElementError, RuntimeError,
                         np.linalg.LinAlgError) as err:
@@ -197,13 +205,16 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     return Result(d, history, solutions, True, "completed")
 
 
-def _newton(problem, d, t, C, g, f_ext, project, tol, max_iterations, log,
+def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
             contributions=()):
-    """Newton iterations of one step; returns the converged data or raises."""
-    d = d.copy()
-    residuals, energies = [], []
-    first_energy = None
-    for it in range(max_iterations + 1):
+    """Newton iterations of one step; returns the converged data or raises.
+
+    Once the prescribed values are met, every update is damped by halving
+    (at most 4 times) until the residual decreases: near the solution the
+    full step is taken and convergence stays quadratic.
+    """
+
+    def state(d):
         ev = problem.evaluate(d)
         f_int, K = ev.f_int, ev.K
         for contribution in contributions:
@@ -211,34 +222,46 @@ def _newton(problem, d, t, C, g, f_ext, project, tol, max_iterations, log,
             f_int, K = f_int + f_c, K + K_c
         r = f_ext - f_int
         ref = max(np.linalg.norm(f_int), np.linalg.norm(f_ext), 1e-300)
-        rel = np.linalg.norm(project(r)) / ref
-        constraint_gap = np.abs(g - C @ d).max(initial=0.0)
+        rel = np.linalg.norm(fit.out_of_balance(r)) / ref
         if not np.isfinite(rel):
             raise NonConvergence("residual is not finite")
-        residuals.append(rel)
-        if it > 0:
-            log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}")
-        if rel <= tol and constraint_gap <= 1e-12 * max(np.abs(g).max(initial=0), 1.0):
-            lam = _reaction_forces(C, r)
-            return d, ev, lam, it, residuals, energies
-        if it == max_iterations:
-            break
-        if it > 2 and rel > 1e3 * residuals[1]:
-            raise NonConvergence(f"residual diverges ({rel:.3e})")
-        delta, _ = solve_constrained(K, r, C, g - C @ d)
+        return ev, K, r, rel
+
+    gap_tol = 1e-12 * max(np.abs(g).max(initial=0), 1.0)
+    d = d.copy()
+    ev, K, r, rel = state(d)
+    residuals, energies = [rel], []
+    first_energy = None
+    for it in range(1, max_iterations + 1):
+        gap = g - C @ d
+        delta, _ = solve_constrained(K, r, C, gap)
         energy = abs(delta @ r)
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)
-        d += delta
+        damp = np.abs(gap).max(initial=0.0) <= gap_tol
+        step = 1.0
+        for attempt in range(5):
+            try:
+                trial = d + step * delta
+                ev_t, K_t, r_t, rel_t = state(trial)
+            except InvertedElementError:
+                if not damp or attempt == 4:
+                    raise
+                step /= 2.0
+                continue
+            if not damp or rel_t < rel or attempt == 4:
+                break
+            step /= 2.0
+        d, ev, K, r, rel = trial, ev_t, K_t, r_t, rel_t
+        residuals.append(rel)
+        log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}"
+            + (f", step {step:g}" if step < 1 else ""))
+        if rel <= tol and np.abs(g - C @ d).max(initial=0.0) <= gap_tol:
+            return d, ev, fit.multipliers(-r), it, residuals, energies
+        if it > 3 and rel > 1e3 * residuals[1]:
+            raise NonConvergence(f"residual diverges ({rel:.3e})")
     raise NonConvergence(f"no convergence in {max_iterations} iterations "
                          f"(residual {residuals[-1]:.3e})")
-
-
-def _reaction_forces(C, r):
-    """Nodal reactions λ with ``Cᵀ λ`` the best fit of ``f_int - f_ext = -r``."""
-    if C.shape[0] == 0:
-        return np.zeros(0)
-    return splu((C @ C.T).tocsc()).solve(C @ -r)
 
 
 def _reactions(prescribed, groups, lam):

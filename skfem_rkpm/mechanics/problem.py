@@ -55,10 +55,18 @@ class SolidProblem:
         For ``axisymmetric`` x is the radius, forces and volumes refer to the
         full ring (2π), and RK bases should be built with
         ``RKBasis(..., axisymmetric=True)`` for exact homogeneous states.
+    locking : {None, "fbar"}
+        Volumetric locking control for nearly isochoric (plastic) flow:
+        ``"fbar"`` replaces the volume change of ``F`` at every quadrature
+        point by its average over the background cell (F-bar, de Souza Neto
+        et al. 1996), with the consistent (non-symmetric) tangent.
     """
 
-    def __init__(self, basis, material, model="plane_strain"):
+    def __init__(self, basis, material, model="plane_strain", locking=None):
+        if locking not in (None, "fbar"):
+            raise ValueError(f"locking must be None or 'fbar', not {locking!r}")
         self.basis, self.material, self.model = basis, material, model
+        self.locking = locking
         self.assembler = Assembler(basis, axisymmetric=model == "axisymmetric")
         self.shape = self.assembler.layout.dx.shape
         self.npoints = int(np.prod(self.shape))
@@ -91,11 +99,58 @@ class SolidProblem:
                 f"det F = {J[bad[0]]:.3g} <= 0 at {bad.size} quadrature points; "
                 f"first in cell {cell} (point {qp}) at X = "
                 f"({', '.join(f'{v:.4g}' for v in x)})", bad)
+        if self.locking == "fbar":
+            return self._evaluate_fbar(F, J, state, tangent)
         P, tau, new_state, A = self.material.update(F, state, tangent=tangent)
         P_ext, A_ext = to_assembler(P, A, self.model, self.shape)
         f_int = self.assembler.linear(P_ext)
         K = self.assembler.bilinear(A_ext) if tangent else None
         return Evaluation(f_int, K, F, P, tau, new_state)
+
+    def _evaluate_fbar(self, F, J, state, tangent):
+        """F-bar: ``F̄ = F + (β^{1/n} - 1) F_M`` with ``β = J̄_e / J``.
+
+        ``J̄_e`` is the volume average of ``J`` over the cell, ``n = 2`` with
+        ``F_M`` the in-plane part of ``F`` (plane strain), ``n = 3`` with
+        ``F_M = F`` otherwise, so that ``det F̄ = J̄_e``.  The stress
+        ``P̃ = β^{1/n - 1} P(F̄)`` is work-conjugate to ``F`` for the Cauchy
+        stress of ``F̄``; its linearization has a local part
+        ``Â = γ s [A - (1/n) (A:F_M) ⊗ F⁻ᵀ] + (1 - 1/n) γ P̄ ⊗ F⁻ᵀ`` and a
+        per-cell rank-one part through ``∂P̃/∂J̄ = (γ/J̄)[(s/n) A:F_M - (1 - 1/n) P̄]``
+        and ``∂J̄/∂d = ∫_e J F⁻ᵀ : ∇N / V_e`` (``s = β^{1/n}``, ``γ = β^{1/n-1}``).
+        """
+        dV = self.assembler.layout.dx
+        Jq = J.reshape(self.shape)
+        Jbar = np.repeat(np.sum(Jq * dV, axis=1) / np.sum(dV, axis=1), self.shape[1])
+        n = 2 if self.model == "plane_strain" else 3
+        FM = F.copy()
+        if n == 2:
+            FM[:, 2, :] = 0.0
+            FM[:, :, 2] = 0.0
+        beta = Jbar / J
+        s, gamma = beta ** (1.0 / n), beta ** (1.0 / n - 1.0)
+        Fbar = F + (s - 1.0)[:, None, None] * FM
+        Pbar, taubar, new_state, A = self.material.update(Fbar, state, tangent=tangent)
+        P = gamma[:, None, None] * Pbar
+        tau = (J / Jbar)[:, None, None] * taubar  # J σ with σ the Cauchy stress of F̄
+        if not tangent:
+            P_ext, _ = to_assembler(P, None, self.model, self.shape)
+            return Evaluation(self.assembler.linear(P_ext), None, F, P, tau, new_state)
+        FinvT = np.linalg.inv(F).transpose(0, 2, 1)
+        AF = np.einsum("niJmN,nmN->niJ", A, FM)
+        A_hat = ((gamma * s)[:, None, None, None, None]
+                 * (A - np.einsum("niJ,nkL->niJkL", AF, FinvT) / n)
+                 + ((1.0 - 1.0 / n) * gamma)[:, None, None, None, None]
+                 * np.einsum("niJ,nkL->niJkL", Pbar, FinvT))
+        dP_dJbar = (gamma / Jbar)[:, None, None] * ((s / n)[:, None, None] * AF
+                                                  - (1.0 - 1.0 / n) * Pbar)
+        P_ext, A_ext = to_assembler(P, A_hat, self.model, self.shape)
+        dP_ext, _ = to_assembler(dP_dJbar, None, self.model, self.shape)
+        dJ_ext, _ = to_assembler(J[:, None, None] * FinvT, None, self.model, self.shape)
+        u = self.assembler.cell_vectors(dP_ext)
+        w = self.assembler.cell_vectors(dJ_ext, test=False) / np.sum(dV, axis=1)
+        K = self.assembler.bilinear(A_ext) + self.assembler.outer(u, w)
+        return Evaluation(self.assembler.linear(P_ext), K, F, P, tau, new_state)
 
     def commit(self, evaluation):
         """Accept the state of a converged evaluation."""

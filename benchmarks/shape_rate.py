@@ -1,0 +1,155 @@
+"""Construction rate of RK shape functions, in (point, node) pairs per second.
+
+Setup: particles on a uniform square (cube) grid over the unit square (cube),
+evaluation points drawn uniformly at random in the same domain, about four
+points per particle (like four quadrature points per background cell).
+Linear basis, cubic kernel, radial supports of normalized size 2.0
+(radius 2h), gradients included.  Everything runs on one core.
+
+The time of the neighbour search (``skfem_rkpm.shape.find_pairs``) is
+measured inside the same call by wrapping the module attribute, so
+``search + rest = total`` exactly.  Each size is run once to warm up
+(first touch of fresh memory is expensive on virtual machines) and then
+timed ``--repeat`` times; the fastest run is reported.
+
+Run:  python benchmarks/shape_rate.py            (all sizes, ~1-2 minutes)
+      python benchmarks/shape_rate.py --max-points 100000
+"""
+
+import os
+
+# one core: must be set before numpy is imported
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import platform  # noqa: E402
+import resource  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy  # noqa: E402
+
+import skfem_rkpm.shape as shape  # noqa: E402
+from skfem_rkpm.shape import rk_shape_functions  # noqa: E402
+
+TARGET = 5e6  # pairs per second on one core
+
+
+def particle_grid(dim, npoints):
+    """Uniform grid on [0, 1]^dim with about npoints / 4 particles, and h."""
+    n = max(2, int(round((npoints / 4) ** (1.0 / dim))))
+    t = np.linspace(0.0, 1.0, n)
+    nodes = np.array([a.ravel() for a in np.meshgrid(*[t] * dim, indexing="ij")])
+    return nodes, t[1] - t[0]
+
+
+class SearchTimer:
+    """Wrap ``shape.find_pairs`` to accumulate its time during one call."""
+
+    def __init__(self):
+        self.inner = shape.find_pairs
+        self.seconds = 0.0
+
+    def __call__(self, *args, **kwargs):
+        t = time.perf_counter()
+        out = self.inner(*args, **kwargs)
+        self.seconds += time.perf_counter() - t
+        return out
+
+    def __enter__(self):
+        shape.find_pairs = self
+        return self
+
+    def __exit__(self, *exc):
+        shape.find_pairs = self.inner
+
+
+def measure(npoints, dim=2, order=1, support=2.0, repeat=3, seed=0):
+    """Best-of-``repeat`` timing of one rk_shape_functions call."""
+    nodes, h = particle_grid(dim, npoints)
+    x = np.random.default_rng(seed).uniform(0.0, 1.0, (dim, npoints))
+    best = None
+    for run in range(repeat + 1):  # run 0 warms up
+        with SearchTimer() as timer:
+            t = time.perf_counter()
+            table = rk_shape_functions(x, nodes, support * h, order=order,
+                                       kernel="cubic", support="radial",
+                                       gradients=True)
+            total = time.perf_counter() - t
+        if run and (best is None or total < best[0]):
+            best = (total, timer.seconds)
+        if run == 0 and total > 20.0:  # too slow to repeat: keep the first run
+            best = (total, timer.seconds)
+            break
+    npairs = len(table.indices)
+    nbytes = sum(a.nbytes for a in (table.indptr, table.indices, table.values,
+                                    table.grads))
+    del table
+    total, search = best
+    return dict(dim=dim, order=order, support=support, npoints=npoints,
+                nnodes=nodes.shape[1], npairs=npairs, total=total,
+                search=search, rest=total - search,
+                rate=npairs / total, us_per_point=1e6 * total / npoints,
+                table_mb=nbytes / 2**20,
+                peak_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+
+
+HEADER = ("| dim | order | c | npoints | particles | npairs | pairs/point | "
+          "seconds | search s | rest s | pairs/s | µs/point | search % | "
+          "table MB | peak RSS MB |")
+
+
+def row(r):
+    return (f"| {r['dim']} | {r['order']} | {r['support']:.1f} | {r['npoints']:,} | "
+            f"{r['nnodes']:,} | {r['npairs']:,} | {r['npairs'] / r['npoints']:.1f} | "
+            f"{r['total']:.4f} | {r['search']:.4f} | {r['rest']:.4f} | "
+            f"{r['rate']:.2e} | {r['us_per_point']:.2f} | "
+            f"{100 * r['search'] / r['total']:.0f} | {r['table_mb']:.1f} | "
+            f"{r['peak_mb']:.0f} |")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--max-points", type=float, default=1e6,
+                        help="skip the 2D order-1 sizes above this (default 1e6)")
+    parser.add_argument("--repeat", type=int, default=None,
+                        help="timed runs per size (default: 20/10/3/2 by size)")
+    args = parser.parse_args()
+
+    block = shape.POINTS_PER_BLOCK
+    sizes = [10**3, 10**4, 10**5, 10**6]
+    # 1e6: a whole number of solver blocks (245 x 4096 = 1,003,520 points)
+    sizes = [s if s < 10**6 else -(-s // block) * block for s in sizes]
+    sizes = [s for s in sizes if s <= args.max_points * 1.01]
+    default_repeat = {10**3: 20, 10**4: 10, 10**5: 3}
+
+    print(f"python {platform.python_version()}, numpy {np.__version__}, "
+          f"scipy {scipy.__version__}, {os.cpu_count()} cores visible, "
+          "OMP/OPENBLAS/MKL_NUM_THREADS=1")
+    print("linear basis, cubic kernel, radial support c = 2.0 (radius 2h), "
+          "gradients, best of the timed runs")
+    print()
+    print("2D, order 1:")
+    print(HEADER)
+    print("|" + "---|" * HEADER.count(" | ") + "---|")
+    for n in sizes:
+        r = measure(n, repeat=args.repeat or default_repeat.get(n, 2))
+        print(row(r), flush=True)
+
+    print()
+    print("Other cases at 1e5 points (order 2 uses c = 2.5: with c = 2.0 the "
+          "moment matrix is singular at points next to the edges, whose "
+          "covering particles lie on two grid lines only):")
+    print(HEADER)
+    print("|" + "---|" * HEADER.count(" | ") + "---|")
+    for dim, order, c in ((2, 2, 2.5), (3, 1, 2.0)):
+        r = measure(10**5, dim=dim, order=order, support=c,
+                    repeat=args.repeat or 3)
+        print(row(r), flush=True)
+    print()
+    print(f"target: {TARGET:.0e} pairs/s on one core")
+
+
+if __name__ == "__main__":
+    main()

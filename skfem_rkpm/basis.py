@@ -22,11 +22,20 @@ from skfem.element import DiscreteField
 
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from .meshes import local_spacing
-from .shape import rk_shape_functions
+from .shape import ShapeTable, rk_shape_functions
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
 INTEGRATION_SCHEMES = ("vci", "gauss")
+
+
+def _rows(table, start, stop):
+    """The rows ``start:stop`` (evaluation points) of a shape table."""
+    lo, hi = table.indptr[start], table.indptr[stop]
+    return ShapeTable(table.indptr[start:stop + 1] - lo, table.indices[lo:hi],
+                      table.values[lo:hi],
+                      None if table.grads is None else table.grads[:, lo:hi],
+                      table.nnodes)
 
 
 def _padded(table, nelems, nqp, grads):
@@ -246,13 +255,20 @@ class RKBasis(_RKBase):
         self.axisymmetric = axisymmetric
 
         geometry = cell_geometry(mesh, intorder)
+        boundary = facet_geometry(mesh, intorder)
         xq = geometry.global_coordinates().reshape(mesh.dim(), -1)
-        table = self._shape_table(xq, nodes)
+        xb = boundary.global_coordinates().reshape(mesh.dim(), -1)
+        # one build for every point the basis will need (cell and boundary
+        # quadrature, particles), so that a too small support is reported
+        # once, for all of them, with a dilation that works everywhere
+        sizes = np.cumsum([0, xq.shape[1], xb.shape[1], nodes.shape[1]])
+        everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes)
+        table, btable, ntable = (_rows(everything, a, b)
+                                 for a, b in zip(sizes[:-1], sizes[1:]))
+        self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
+            nodes.shape[0] if vector else 1), format="csr")
         test_grads = table.grads
         if integration == "vci":
-            boundary = facet_geometry(mesh, intorder)
-            xb = boundary.global_coordinates().reshape(mesh.dim(), -1)
-            btable = self._shape_table(xb, nodes, gradients=False)
             test_grads = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
@@ -292,9 +308,6 @@ class RKBasis(_RKBase):
         Scalar entries ``L_IJ = Ψ_I(X_J)`` (Eq. 3.34), interleaved per
         component for vector bases; sparse, shape (N, N).
         """
-        if getattr(self, "_nodal_matrix", None) is None:
-            T = self._shape_table(self.nodes, gradients=False).matrix()
-            self._nodal_matrix = sp.kron(T, sp.identity(self.ncomp), format="csr")
         return self._nodal_matrix
 
     def nodal_values(self, d):

@@ -113,7 +113,7 @@ class _Reactions:
 
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
-                 contributions=()):
+                 contributions=(), start=0.0, on_step=None):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -142,6 +142,11 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         its tangent), ``commit()`` (accept the last evaluated state) and
         ``resultants() -> dict`` (named force vectors, e.g. tool reactions,
         recorded with each step).
+    start : float
+        Load factor of ``d0`` (to resume a run): only later targets are run.
+    on_step : callable, optional
+        ``on_step(record, d, evaluation)`` after every converged step (the
+        problem's state is committed), e.g. to write results as they come.
 
     Returns
     -------
@@ -165,8 +170,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
 
     d = np.zeros(problem.N) if d0 is None else np.array(d0, dtype=float)
     history, solutions = [], []
-    t_done, step_index = 0.0, 0
-    for target in targets:
+    t_done = float(start)
+    step_index = int(np.sum(targets <= t_done + 1e-14))
+    for target in targets[targets > t_done + 1e-14]:
         while t_done < target - 1e-14:
             dt = target - t_done
             for cut in range(max_cutbacks + 1):
@@ -200,6 +206,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                                 time.perf_counter() - start, reactions, cut)
             history.append(record)
             solutions.append(d.copy())
+            if on_step is not None:
+                on_step(record, d, ev)
             log(f"step {step_index}: t = {t:.6g} converged in {its} iterations "
                 f"(residual {res[-1]:.2e}, {record.seconds:.3f} s)")
     return Result(d, history, solutions, True, "completed")

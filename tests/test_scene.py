@@ -1,0 +1,100 @@
+"""Scene files: validation errors name the key and the line; settings override."""
+
+from pathlib import Path
+
+import pytest
+
+from skfem_rkpm.scene import (SCHEMA, SceneError, apply_setting, builtin_scenes,
+                              load_scene, parse_scene, schema_markdown)
+
+GOOD = """
+[model]
+type = "plane_strain"
+
+[geometry]
+x = [0.0, 1.0]
+y = [0.0, 1.0]
+divisions = [4, 4]
+
+[material]
+E = 200e3
+nu = 0.3
+yield = 300.0
+
+[boundary.bottom]
+fix = ["y"]
+"""
+
+
+def error_of(text):
+    with pytest.raises(SceneError) as info:
+        parse_scene(text, "block.toml")
+    return str(info.value)
+
+
+def test_good_scene_fills_defaults():
+    scene = parse_scene(GOOD, "block.toml")
+    assert scene["model"]["method"] == "rkpm"
+    assert scene["discretization"]["dilation"] == 2.0
+    assert scene["boundary.bottom"]["method"] == "nodal"
+    assert scene["material"]["E"] == 200e3 and isinstance(scene["material"]["yield"], float)
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (("nu = 0.3", "nu = 0.5"), "block.toml, line 12: material.nu: must lie in (-1, 0.5)"),
+    (("E = 200e3", "E = -1.0"), "block.toml, line 11: material.E: must be positive"),
+    (("E = 200e3", 'E = "steel"'), "line 11: material.E: must be of type float"),
+    (("yield = 300.0", "yeld = 300.0"), "line 13: material.yeld: unknown key"),
+    (('type = "plane_strain"', 'type = "plane_stress"'),
+     "line 3: model.type: must be one of ['plane_strain', 'axisymmetric', '3d']"),
+    (('fix = ["y"]', 'fix = ["w"]'), "line 16: boundary.bottom.fix: unknown component 'w'"),
+    (("divisions = [4, 4]", "divisions = [4]"), "line 8: geometry.divisions: needs two values"),
+    (("[geometry]", "[geometri]"), "line 5: geometri: unknown section"),
+    (("E = 200e3\n", ""), "material: missing required key 'E'"),
+])
+def test_errors_name_key_and_line(edit, expected):
+    assert expected in error_of(GOOD.replace(*edit))
+
+
+def test_missing_material_section_and_bad_toml():
+    assert "missing required section [material]" in error_of(
+        GOOD.split("[material]")[0])
+    assert "not valid TOML" in error_of(GOOD + "\nE = \n")
+
+
+def test_support_too_small_is_reported_with_the_dilation_that_works():
+    from skfem_rkpm.runner import build
+    from skfem_rkpm.shape import SingularMomentError
+
+    scene = parse_scene(GOOD + "\n[discretization]\ndilation = 0.6\n", "block.toml")
+    with pytest.raises(SingularMomentError, match="smallest normalized support"):
+        build(scene)
+
+
+def test_settings_override_and_add_keys():
+    text = apply_setting(GOOD, "material.nu=0.25")
+    assert parse_scene(text)["material"]["nu"] == 0.25
+    text = apply_setting(GOOD, "tools.platen.friction=stick")
+    text = apply_setting(text, "tools.platen.point=[0.0, 1.0]")
+    text = apply_setting(text, "tools.platen.normal=[0.0, -1.0]")
+    scene = parse_scene(text)
+    assert scene["tools.platen"]["friction"] == "stick"
+    assert scene["tools.platen"]["point"] == [0.0, 1.0]
+    with pytest.raises(SceneError, match="expected key=value"):
+        apply_setting(GOOD, "material.nu")
+
+
+def test_every_key_is_documented():
+    table = schema_markdown()
+    for section, keys in SCHEMA.items():
+        for key in keys:
+            assert f"| `{key}` |" in table
+    with open(Path(__file__).parent.parent / "docs" / "scenes.md") as handle:
+        assert table in handle.read(), "regenerate docs/scenes.md from schema_markdown()"
+
+
+def test_builtin_scenes_are_valid():
+    scenes = builtin_scenes()
+    assert "ring" in scenes
+    for path in scenes.values():
+        load_scene(path)

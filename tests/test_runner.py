@@ -1,0 +1,103 @@
+"""Running scenes: results on disk, interruption keeps finished steps, resume."""
+
+import csv
+
+import numpy as np
+import pytest
+
+import skfem_rkpm.runner as runner
+from skfem_rkpm.cli import main
+from skfem_rkpm.scene import parse_scene
+
+BLOCK = """
+[model]
+type = "plane_strain"
+title = "block under pressure"
+
+[geometry]
+x = [0.0, 1.0]
+y = [0.0, 1.0]
+divisions = [4, 4]
+
+[material]
+E = 200e3
+nu = 0.3
+yield = 300.0
+
+[boundary.bottom]
+fix = ["y"]
+method = "weak"
+
+[boundary.left]
+fix = ["x"]
+method = "weak"
+
+[boundary.top]
+pressure = 320.0
+
+[steps]
+count = 4
+
+[output]
+points = { corner = [1.0, 1.0] }
+"""
+
+
+@pytest.mark.parametrize("method", ["rkpm", "fem"])
+def test_run_writes_history_fields_and_figures(tmp_path, method):
+    from skfem_rkpm.plot import save_run_figures
+
+    sim = runner.build(parse_scene(BLOCK), method)
+    result = runner.run(sim, tmp_path, progress=False)
+    save_run_figures(sim, result, tmp_path)
+    assert result.completed
+    for name in ("history.csv", "fields.xdmf", "fields.h5", "deformed.png",
+                 "forces.png", "status.txt", "checkpoint.pkl"):
+        assert (tmp_path / name).exists(), name
+    rows = list(csv.DictReader(open(tmp_path / "history.csv")))
+    assert len(rows) == 4
+    # dead pressure 320 on a unit top edge, reaction of the bottom support
+    assert float(rows[-1]["reaction bottom[1]"]) == pytest.approx(320.0, rel=1e-9)
+    assert float(rows[-1]["corner y"]) < 1.0
+
+
+def test_interrupted_run_resumes_to_the_same_answer(tmp_path, monkeypatch):
+    reference = runner.run(runner.build(parse_scene(BLOCK)), tmp_path / "ref",
+                           progress=False)
+    calls = {"n": 0}
+    write = runner.write_history
+
+    def interrupting(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "write_history", interrupting)
+    with pytest.raises(KeyboardInterrupt):
+        runner.run(runner.build(parse_scene(BLOCK)), tmp_path / "cut", progress=False)
+    monkeypatch.setattr(runner, "write_history", write)
+    assert len(list(csv.DictReader(open(tmp_path / "cut" / "history.csv")))) == 2
+    resumed = runner.run(runner.build(parse_scene(BLOCK)), tmp_path / "cut",
+                         progress=False, resume=True)
+    assert resumed.completed and len(resumed.history) == 4
+    np.testing.assert_allclose(resumed.d, reference.d, rtol=0,
+                               atol=1e-12 * np.abs(reference.d).max())
+    assert len(list(csv.DictReader(open(tmp_path / "cut" / "history.csv")))) == 4
+
+
+def test_cli_reports_scene_errors(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(BLOCK.replace("nu = 0.3", "nu = 0.7"))
+    assert main(["run", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "bad.toml, line 13: material.nu: must lie in (-1, 0.5)" in capsys.readouterr().err
+    assert main(["run", "no-such-scene"]) == 2
+
+
+def test_cli_runs_a_scene_file(tmp_path, capsys):
+    scene = tmp_path / "block.toml"
+    scene.write_text(BLOCK)
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--quiet",
+                 "--set", "steps.count=2", "--method", "fem"]) == 0
+    assert "completed: 2 steps" in capsys.readouterr().out
+    assert (tmp_path / "o" / "deformed.png").exists()

@@ -178,7 +178,8 @@ class J2Material:
             sy, H = self.hardening(alpha_n + dgamma)
             f = q_trial - 3.0 * G * dgamma - sy
             dgamma = dgamma + f / (3.0 * G + H)
-            if np.all(np.abs(f) <= tol * sy):
+            # round-off in f is relative to the trial stress
+            if np.all(np.abs(f) <= tol * q_trial):
                 break
         else:
             raise RuntimeError("plastic return map did not converge "

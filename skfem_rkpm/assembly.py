@@ -10,8 +10,8 @@ functions enter through their gradients,
 (``Ñ``: test functions, VCI-corrected for RK; ``N``: trial functions) plus
 the mass-type form ``∫ Ñ_a s N_b``.  The :class:`Assembler` reads any basis
 as per-cell scalar local functions, computes all local matrices with
-``einsum`` and scatters them into a CSR matrix whose sparsity pattern and
-scatter map are computed once.
+``einsum`` and batched matrix products, and scatters them into a CSR matrix
+whose sparsity pattern and scatter map are computed once.
 """
 
 from dataclasses import dataclass
@@ -22,8 +22,11 @@ from skfem.element import ElementVector
 
 __all__ = ["Layout", "layout", "axisymmetric_layout", "Assembler", "isotropic_tangent"]
 
-#: cells per einsum block: bounds the memory of the local matrices
-CELLS_PER_BLOCK = 2048
+#: most cells per block of the local computations
+CELLS_PER_BLOCK = 256
+#: entries of the largest per-block temporary (fewer cells per block when a
+#: cell has many local functions): keeps the blocks in cache
+BLOCK_ENTRIES = 2**18
 
 
 @dataclass
@@ -141,7 +144,8 @@ class Assembler:
         The scalar pattern (particle x particle) comes from a sparse product
         of the cell-particle incidence; each local entry finds its place by
         binary search in the sorted scalar keys, and scalar entries expand to
-        ``c x c`` blocks analytically.
+        ``c x c`` blocks analytically.  The scatter map follows the local
+        matrices cell by cell, in the order (cell, a, c, b, d).
         """
         L = self.layout
         c, (nloc, nelems), n = L.ncomp, L.element_nodes.shape, L.nscalar
@@ -153,21 +157,25 @@ class Assembler:
         indptr_s, cols_s = pattern.indptr, pattern.indices
         rows_s = np.repeat(np.arange(n), np.diff(indptr_s))
         keys = rows_s.astype(np.int64) * n + cols_s
-        I = L.element_nodes[:, None, :].astype(np.int64)
-        J = L.element_nodes[None, :, :]
-        position = np.searchsorted(keys, (I * n + J).ravel()).reshape(nloc, nloc, nelems)
+        nodes = np.ascontiguousarray(L.element_nodes.T)  # (nelems, nloc)
+        I = nodes[:, :, None].astype(np.int64)
+        J = nodes[:, None, :]
+        position = np.searchsorted(keys, (I * n + J).ravel()).reshape(nelems, nloc, nloc)
         # vector CSR: scalar row I becomes rows cI..cI+c-1, each holding the
         # c x c blocks of the scalar row in column order
         length = np.diff(indptr_s)
         start = indptr_s[:-1]
-        a = np.arange(c)[None, :, None, None, None]
-        b = np.arange(c)[None, None, None, :, None]
-        Ie = L.element_nodes[:, None, None, None, :]
-        pos = position[:, None, :, None, :]
-        scatter = (c * c * start[Ie] + a * c * length[Ie]
-                   + c * (pos - start[Ie]) + b)
+        # entry (cell, a, c_a, b, c_b) goes to c² start_I + c_a c length_I
+        # + c (position - start_I) + c_b, with I the particle of slot a
         dtype = np.int32 if c * c * len(keys) < 2**31 else np.int64
-        self._scatter = scatter.reshape(-1).astype(dtype)
+        first = start[nodes].astype(np.int64)[:, :, None]
+        block = (c * c * first + c * (position - first)).astype(dtype)  # (E, a, b)
+        row = (c * length[nodes]).astype(dtype)[:, :, None]  # (E, a, 1)
+        scatter = np.empty((nelems, nloc, c, nloc, c), dtype=dtype)
+        for c_a in range(c):
+            for c_b in range(c):
+                np.add(block, c_a * row + c_b, out=scatter[:, :, c_a, :, c_b])
+        self._scatter = scatter.reshape(-1)
         self.nnz = c * c * len(keys)
         self.indptr = np.concatenate([[0], np.cumsum(np.repeat(c * length, c))])
         # column indices: vector row cI+a repeats the block columns of row I
@@ -181,19 +189,25 @@ class Assembler:
     def N(self):
         return self.layout.N
 
-    def _blocks(self):
+    def _blocks(self, entries_per_cell=1):
+        """Slices of cells, each block's temporaries at most ``BLOCK_ENTRIES``."""
         nelems = self.layout.element_nodes.shape[1]
-        for start in range(0, nelems, CELLS_PER_BLOCK):
-            yield slice(start, min(start + CELLS_PER_BLOCK, nelems))
+        step = max(1, min(CELLS_PER_BLOCK, BLOCK_ENTRIES // entries_per_cell))
+        for start in range(0, nelems, step):
+            yield slice(start, min(start + step, nelems))
 
     def _to_csr(self, local):
-        """Scatter local matrices (nbf, nbf, nelems) into the cached CSR pattern."""
+        """Scatter local matrices (nelems, nbf, nbf) into the cached CSR pattern."""
         data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
         return sp.csr_matrix((data, self._pattern_cols, self.indptr),
                              shape=(self.N, self.N))
 
     def bilinear(self, C):
         """``∫ ∂_l Ñ_a C_{c l d m} ∂_m N_b``.
+
+        Per block of cells, ``R = C ∂N`` of the trial functions is formed
+        first, then one batched matrix product with the weighted test
+        gradients gives the local matrices.
 
         Parameters
         ----------
@@ -203,26 +217,49 @@ class Assembler:
         L = self.layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         C = np.asarray(C, dtype=float)
-        local = np.empty((nloc, c, nloc, c, nelems))
-        for s in self._blocks():
-            Cw = (C[..., s, :] if C.ndim == 6 else C[..., None, None]) * L.dx[s]
-            local[..., s] = np.einsum("laEq,cldmEq,mbEq->acbdE",
-                                      L.test_grads[:, :, s], Cw,
-                                      L.trial_grads[:, :, s], optimize=True)
-        return self._to_csr(local.reshape(nloc * c, nloc * c, nelems))
+        nbf = nloc * c
+        local = np.empty((nelems, nbf, nbf))
+        for s in self._blocks(L.dim * L.dx.shape[1] * c * nbf):  # size of R
+            E = s.stop - s.start
+            R = self._tangent_trial(C, s)
+            T = self._weighted_test_grads(s)
+            # local[E, a, (c b d)] = Σ_(l q) T[E, a, (l q)] R[E, (l q), (c b d)]
+            np.matmul(T, R, out=local[s].reshape(E, nloc, c * nbf))
+        return self._to_csr(local)
+
+    def _tangent_trial(self, C, s):
+        """``R[(l q), (c b d)] = Σ_m C_{c l d m} ∂_m N_b`` on cells ``s``.
+
+        Shape (cells, dim * nqp, c * nloc * c); ``q`` is the quadrature point.
+        """
+        G = self.layout.trial_grads[:, :, s]
+        if C.ndim == 6:
+            R = np.einsum("cldmEq,mbEq->Elqcbd", C[..., s, :], G)
+        else:
+            R = np.einsum("cldm,mbEq->Elqcbd", C, G)
+        E, dim, nqp = R.shape[:3]
+        return R.reshape(E, dim * nqp, -1)
+
+    def _weighted_test_grads(self, s):
+        """``∂_l Ñ_a dΩ`` on cells ``s``, shape (cells, nloc, dim * nqp)."""
+        L = self.layout
+        T = (L.test_grads[:, :, s] * L.dx[s]).transpose(2, 1, 0, 3)  # (E, a, l, q)
+        return T.reshape(T.shape[0], T.shape[1], -1)
 
     def mass(self, density=1.0):
         """``∫ Ñ_a ρ N_b δ_cd`` (values are not corrected by VCI)."""
         L = self.layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         rho = np.broadcast_to(np.asarray(density, dtype=float), L.dx.shape)
-        scalar = np.empty((nloc, nloc, nelems))
+        scalar = np.empty((nelems, nloc, nloc))
         for s in self._blocks():
-            scalar[..., s] = np.einsum("aEq,bEq,Eq->abE", L.values[:, s],
-                                       L.values[:, s], rho[s] * L.dx[s],
-                                       optimize=True)
-        local = np.einsum("abe,cd->acbde", scalar, np.eye(c))
-        return self._to_csr(local.reshape(nloc * c, nloc * c, nelems))
+            V = L.values[:, s].transpose(1, 0, 2)  # (E, a, q)
+            np.matmul(V * (rho[s] * L.dx[s])[:, None, :], V.transpose(0, 2, 1),
+                      out=scalar[s])
+        local = np.zeros((nelems, nloc, c, nloc, c))
+        for comp in range(c):  # δ_cd: the same scalar block on each component
+            local[:, :, comp, :, comp] = scalar
+        return self._to_csr(local.reshape(nelems, nloc * c, nloc * c))
 
     def cell_vectors(self, P, test=True):
         """Per-cell vectors ``∫_e ∂_l N_a P_{c l}``, shape (nloc * c, nelems).
@@ -247,7 +284,7 @@ class Assembler:
 
     def outer(self, u, w):
         """Matrix of the per-cell rank-one blocks ``u_e ⊗ w_e`` (nloc * c, nelems)."""
-        return self._to_csr(u[:, None, :] * w[None, :, :])
+        return self._to_csr(u.T[:, :, None] * w.T[:, None, :])
 
     def gradient(self, u):
         """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp)."""

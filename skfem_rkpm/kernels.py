@@ -29,12 +29,12 @@ def cubic_spline(z):
         ``φ(z)`` and ``dφ/dz``; both vanish for ``z >= 1``.
     """
     z = np.asarray(z, dtype=float)
-    inner = z <= 0.5
-    outer = (z > 0.5) & (z < 1.0)
-    phi = np.where(inner, 2.0 / 3.0 - 4.0 * z**2 + 4.0 * z**3, 0.0)
-    phi = np.where(outer, 4.0 / 3.0 - 4.0 * z + 4.0 * z**2 - 4.0 / 3.0 * z**3, phi)
-    dphi = np.where(inner, -8.0 * z + 12.0 * z**2, 0.0)
-    dphi = np.where(outer, -4.0 + 8.0 * z - 4.0 * z**2, dphi)
+    # Eq. (3.12) in truncated powers: φ = 4/3 [(1 - z)₊³ - 4 (1/2 - z)₊³]
+    u = np.maximum(1.0 - z, 0.0)
+    v = np.maximum(0.5 - z, 0.0)
+    u2, v2 = u * u, v * v
+    phi = (4.0 / 3.0) * (u2 * u - 4.0 * (v2 * v))
+    dphi = -4.0 * (u2 - 4.0 * v2)
     return phi, dphi
 
 

@@ -14,7 +14,10 @@ on ``s`` (the scaling is a diagonal change of basis that leaves ``H(0)``
 fixed), so ``s`` is frozen when differentiating.
 
 All work is vectorized over the (point, node) pairs, stored in CSR order
-(sorted by point, then node): :class:`ShapeTable`.
+(sorted by point, then node): :class:`ShapeTable`.  Points are processed in
+blocks; inside a block the pair arrays are laid out (component, pair) and
+the small moment matrices (m, m, point), so that every operation runs over
+long contiguous rows.
 """
 
 from dataclasses import dataclass
@@ -127,26 +130,42 @@ def monomial_exponents(dim, order):
     return np.array(exps, dtype=int).reshape(-1, dim)
 
 
-def _monomials(xi, exps):
-    """``H(ξ)`` and ``∂H/∂ξ_k`` for ξ of shape (n, dim): (n, m), (dim, n, m)."""
-    n, dim = xi.shape
-    powers = np.ones((int(exps.max(initial=0)) + 1, n, dim))
-    for p in range(1, len(powers)):
-        powers[p] = powers[p - 1] * xi
+def _monomial_recurrences(exps):
+    """Recurrences that build ``H`` and its derivatives from lower monomials.
 
-    def product(e):
-        out = np.ones((len(e), n))
-        for k in range(dim):
-            out *= powers[e[:, k], :, k]
-        return out.T
+    The basis is sorted by degree, so every monomial ``j > 0`` is a lower
+    one times one coordinate.
 
-    H = product(exps)
-    dH = np.empty((dim, n, len(exps)))
-    for k in range(dim):
-        lowered = exps.copy()
-        lowered[:, k] = np.maximum(lowered[:, k] - 1, 0)
-        dH[k] = product(lowered) * exps[:, k]
-    return H, dH
+    Returns
+    -------
+    build : list of (j, k, l)
+        ``H_j = ξ_k H_l`` for ``j = 1 .. m-1`` in order (``l < j``).
+    lowered : list over k of lists of (j, e_jk, l)
+        ``∂H_j/∂ξ_k = e_jk H_l``, only for the monomials that contain ``ξ_k``.
+    """
+    index = {tuple(e): j for j, e in enumerate(exps)}
+
+    def lower(e, k):
+        low = e.copy()
+        low[k] -= 1
+        return index[tuple(low)]
+
+    build = []
+    for j in range(1, len(exps)):
+        k = int(np.flatnonzero(exps[j])[0])
+        build.append((j, k, lower(exps[j], k)))
+    lowered = [[(j, float(e[k]), lower(e, k)) for j, e in enumerate(exps) if e[k] > 0]
+               for k in range(exps.shape[1])]
+    return build, lowered
+
+
+def _monomials(xi, build, m):
+    """``H(ξ)`` of Eq. (2.24) for ξ of shape (dim, n): shape (m, n)."""
+    H = np.empty((m, xi.shape[1]))
+    H[0] = 1.0
+    for j, k, low in build:
+        np.multiply(H[low], xi[k], out=H[j])
+    return H
 
 
 def find_pairs(points, nodes, radius, support="radial"):
@@ -167,91 +186,150 @@ def find_pairs(points, nodes, radius, support="radial"):
         Pair lists sorted by point, then node.
     """
     p = {"radial": 2.0, "box": np.inf}[support]
-    tree = cKDTree(points)
+    tree = cKDTree(points, balanced_tree=False)
     # group nodes by radius (factor 1.5 per group) so that graded supports
     # are not all searched with the largest radius
     rmin = radius.min()
     group = np.floor(np.log(radius / rmin) / np.log(1.5)).astype(int)
-    ipoint, inode = [], []
+    nnodes = len(nodes)
+    keys = []
     for g in np.unique(group):
         members = np.flatnonzero(group == g)
         rg = radius[members]
-        found = cKDTree(nodes[members]).sparse_distance_matrix(
+        found = cKDTree(nodes[members], balanced_tree=False).sparse_distance_matrix(
             tree, rg.max(), p=p, output_type="ndarray"
         )
         keep = found["v"] < rg[found["i"]]
-        inode.append(members[found["i"][keep]])
-        ipoint.append(found["j"][keep])
-    ipoint = np.concatenate(ipoint).astype(np.int64)
-    inode = np.concatenate(inode).astype(np.int64)
-    order = np.lexsort((inode, ipoint))
-    return ipoint[order], inode[order]
+        # one int64 key per pair orders by point, then node
+        keys.append(found["j"][keep].astype(np.int64) * nnodes
+                    + members[found["i"][keep]])
+    key = np.sort(keys[0] if len(keys) == 1 else np.concatenate(keys))
+    ipoint, inode = np.divmod(key, nnodes)
+    return ipoint, inode
 
 
-def _window(diff, a, kernel, support):
+def _kernel_weights(diff, a, kernel, support):
     """Kernel φ and its gradient w.r.t. X for pair differences ``X - X_I``.
 
     Parameters
     ----------
-    diff : ndarray, shape (n, dim)
+    diff : ndarray, shape (dim, n)
     a : ndarray, shape (n,)
+
+    Returns
+    -------
+    phi : ndarray, shape (n,)
+    dphi : ndarray, shape (dim, n)
     """
     if support == "radial":
-        r = np.sqrt(np.einsum("nk,nk->n", diff, diff))
-        phi, dphi = kernel(r / a)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            direction = np.where(r[:, None] > 0, diff / r[:, None], 0.0)
-        return phi, (dphi / a)[:, None] * direction
+        r = np.sqrt(np.einsum("kn,kn->n", diff, diff))
+        phi, dphi_dz = kernel(r / a)
+        # ∂φ/∂X = φ'(z) / a · (X - X_I) / r, zero at the node itself
+        scale = np.zeros_like(r)
+        np.divide(dphi_dz, a * r, out=scale, where=r > 0)
+        return phi, scale * diff
     # box: tensor product of one-dimensional windows
-    phik, dphik = kernel(np.abs(diff) / a[:, None])
-    phi = np.prod(phik, axis=1)
+    phik, dphik = kernel(np.abs(diff) / a)
+    phi = np.prod(phik, axis=0)
     grad = np.empty_like(diff)
-    for k in range(diff.shape[1]):
-        others = np.prod(np.delete(phik, k, axis=1), axis=1)
-        grad[:, k] = dphik[:, k] * np.sign(diff[:, k]) / a * others
+    for k in range(diff.shape[0]):
+        others = np.prod(np.delete(phik, k, axis=0), axis=0)
+        grad[k] = dphik[k] * np.sign(diff[k]) / a * others
     return phi, grad
 
 
-def _segment_sum(values, starts):
-    """Sum consecutive pair rows into one row per point (non-empty segments)."""
-    return np.add.reduceat(values, starts, axis=0)
+def _window(diff, a, kernel, support):
+    """:func:`_kernel_weights` for pair-major differences ``diff`` (n, dim).
+
+    Returns φ (n,) and its gradient (n, dim).
+    """
+    phi, grad = _kernel_weights(np.asarray(diff).T, a, kernel, support)
+    return phi, grad.T
 
 
-def _moment_solve(H, dH, phi, dphi, starts, counts, gradients):
+def _moment_matrices(H, phi, starts):
+    """``M(X) = Σ_I H H^T φ`` of Eq. (3.17) per point, shape (m, m, npoints).
+
+    Only the upper triangle is summed; the lower one is its mirror.
+    """
+    m = len(H)
+    iu, ju = np.triu_indices(m)
+    Hphi = H * phi
+    products = np.empty((len(iu), H.shape[1]))
+    for row, (i, j) in enumerate(zip(iu, ju)):
+        np.multiply(H[i], Hphi[j], out=products[row])
+    upper = np.add.reduceat(products, starts, axis=1)
+    M = np.empty((m, m, upper.shape[1]))
+    M[iu, ju] = upper
+    M[ju, iu] = upper
+    return M
+
+
+def _batched_inverse(M):
+    """Inverses of the symmetric positive (semi)definite ``M[:, :, p]``.
+
+    Gauss-Jordan elimination without pivoting, vectorized over the last
+    axis (pivots of a positive definite matrix are positive).  An exactly
+    singular matrix gives inf/NaN entries in its own inverse only, which
+    the condition estimate then flags.
+    """
+    m = M.shape[0]
+    A = np.concatenate([M, np.broadcast_to(np.eye(m)[:, :, None], M.shape)], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(m):
+            A[i] /= A[i, i]
+            for r in range(m):
+                if r != i:
+                    A[r] -= A[r, i] * A[i]
+    return A[:, m:]
+
+
+def _rcond(M, Minv):
+    """Reciprocal 1-norm condition number of each ``M[:, :, p]`` (NaN if singular)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 1.0 / (np.abs(M).sum(axis=0).max(axis=0)
+                      * np.abs(Minv).sum(axis=0).max(axis=0))
+
+
+def _dot(u, v):
+    """Column-wise dot product of two (m, n) arrays."""
+    return np.einsum("jn,jn->n", u, v)
+
+
+def _moment_solve(H, lowered, phi, dphi, inv_s, starts, counts, gradients):
     """Batched solve of Eq. (3.16)-(3.17) and (2.30), (2.37) for one block.
 
-    ``dH`` holds ∂H/∂X (the caller folds in the 1/s scaling).  Returns the
-    pair values, the pair gradients and the reciprocal condition number of
-    each point's moment matrix.
+    Pair arrays are laid out (component, pair): ``H`` (m, n), ``dphi``
+    (dim, n).  The monomial derivatives are ``∂H_j/∂X_k = e_jk H_l / s``
+    (``lowered``, see :func:`_monomial_recurrences`; ``s`` frozen, its
+    inverse per pair in ``inv_s``).  Returns the pair values, the pair
+    gradients and the reciprocal condition number of each point's moment
+    matrix.
     """
-    HHt = H[:, :, None] * H[:, None, :]
-    M = _segment_sum(HHt * phi[:, None, None], starts)
-    try:
-        Minv = np.linalg.inv(M)
-        norm = np.abs(M).sum(axis=1).max(axis=1)
-        norm_inv = np.abs(Minv).sum(axis=1).max(axis=1)
-        rcond = 1.0 / (norm * norm_inv)
-    except np.linalg.LinAlgError:  # some M exactly singular: flag, keep finite
-        Minv = np.linalg.pinv(M, hermitian=True)
-        eig = np.linalg.eigvalsh(M)
-        rcond = eig[:, 0] / eig[:, -1]
-    b = np.repeat(Minv[:, :, 0], counts, axis=0)  # M⁻¹ H(0), per pair
-    c = np.einsum("nm,nm->n", H, b)  # H_Iᵀ b
-    values = c * phi
+    M = _moment_matrices(H, phi, starts)
+    Minv = _batched_inverse(M)
+    rcond = _rcond(M, Minv)
+    b = np.repeat(Minv[:, 0], counts, axis=1)  # M⁻¹ H(0), per pair
+    c = _dot(H, b)  # H_Iᵀ b
+    cphi = c * phi
     if not gradients:
-        return values, None, rcond
-    dim = dH.shape[0]
-    grads = np.empty((dim, len(phi)))
-    for k in range(dim):
-        ck = np.einsum("nm,nm->n", dH[k], b)  # H_I,kᵀ b
-        v = _segment_sum(
-            dH[k] * (c * phi)[:, None] + H * (ck * phi + c * dphi[:, k])[:, None],
-            starts,
-        )
-        bk = -np.einsum("pij,pj->pi", Minv, v)  # b_,k = -M⁻¹ M_,k b
-        bk = np.repeat(bk, counts, axis=0)
-        grads[k] = np.einsum("nm,nm->n", H, bk) * phi + ck * phi + c * dphi[:, k]
-    return values, grads, rcond
+        return cphi, None, rcond
+    grads = np.empty(dphi.shape)
+    cphi_s = cphi * inv_s
+    for k, terms in enumerate(lowered):
+        ck = np.zeros_like(phi)  # H_I,kᵀ b
+        for j, e, low in terms:
+            ck += (e * b[j]) * H[low]
+        ck *= inv_s
+        t = ck * phi + c * dphi[k]
+        # M_,k b = Σ_I [H_I,k (c φ) + H_I (c_k φ + c φ_,k)]
+        V = H * t
+        for j, e, low in terms:
+            V[j] += (e * cphi_s) * H[low]
+        v = np.add.reduceat(V, starts, axis=1)
+        bk = -np.einsum("ijp,jp->ip", Minv, v)  # b_,k = -M⁻¹ M_,k b
+        grads[k] = _dot(H, np.repeat(bk, counts, axis=1)) * phi + t
+    return cphi, grads, rcond
 
 
 def rk_shape_functions(
@@ -331,8 +409,7 @@ def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
     """Compute the table; return it with the failing points and the reason."""
     dim, npoints = x.shape
     m = len(exps)
-    pts, nds = x.T.copy(), nodes.T.copy()
-    ipoint, inode = find_pairs(pts, nds, radius, support)
+    ipoint, inode = find_pairs(x.T.copy(), nodes.T.copy(), radius, support)
     counts = np.bincount(ipoint, minlength=npoints)
     indptr = np.concatenate([[0], np.cumsum(counts)])
     table = ShapeTable(indptr, inode, None, None, nodes.shape[1])
@@ -343,20 +420,22 @@ def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
     values = np.empty(len(inode))
     grads = np.empty((dim, len(inode))) if gradients else None
     rcond = np.empty(npoints)
+    build, lowered = _monomial_recurrences(exps)
+    x, nodes = np.ascontiguousarray(x), np.ascontiguousarray(nodes)
     for start in range(0, npoints, POINTS_PER_BLOCK):
         stop = min(start + POINTS_PER_BLOCK, npoints)
         lo, hi = indptr[start], indptr[stop]
-        q, I = ipoint[lo:hi], inode[lo:hi]
+        I = inode[lo:hi]
         starts = indptr[start:stop] - lo
-        diff = pts[q] - nds[I]
-        phi, dphi = _window(diff, radius[I], window, support)
+        diff = np.take(x, ipoint[lo:hi], axis=1) - np.take(nodes, I, axis=1)
+        a = radius[I]
+        phi, dphi = _kernel_weights(diff, a, window, support)
         # local length s(X): the largest support covering the point
-        s = np.maximum.reduceat(radius[I], starts)
-        s_pair = np.repeat(s, counts[start:stop])
-        H, dH = _monomials(diff / s_pair[:, None], exps)
-        dH /= s_pair[None, :, None]
-        v, g, rc = _moment_solve(H, dH, phi, dphi, starts, counts[start:stop],
-                                 gradients)
+        s = np.maximum.reduceat(a, starts)
+        inv_s = np.repeat(1.0 / s, counts[start:stop])
+        H = _monomials(diff * inv_s, build, m)
+        v, g, rc = _moment_solve(H, lowered, phi, dphi, inv_s, starts,
+                                 counts[start:stop], gradients)
         values[lo:hi] = v
         if gradients:
             grads[:, lo:hi] = g

@@ -127,7 +127,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         Number of equal steps, or the increasing load factors to reach.
     tol : float
         Relative residual tolerance (the paper's 1e-6): the out-of-balance
-        force, reactions removed, over ``max(|f_int|, |f_ext|)``.
+        force, reactions removed, over the largest of ``|f_int|``,
+        ``|f_ext|`` and each contribution's ``|f_c|``.
     max_iterations : int
         Newton iterations before a step is cut back.
     max_cutbacks : int
@@ -177,7 +178,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             dt = target - t_done
             for cut in range(max_cutbacks + 1):
                 t = t_done + dt
-                start = time.perf_counter()
+                clock = time.perf_counter()
                 try:
                     d_new, ev, lam, its, res, en = _newton(
                         problem, d, t, C, g(t), f_ext(t), reactions_fit, tol,
@@ -203,7 +204,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             d, t_done = d_new, t
             step_index += 1
             record = StepRecord(step_index, t, its, res, en,
-                                time.perf_counter() - start, reactions, cut)
+                                time.perf_counter() - clock, reactions, cut)
             history.append(record)
             solutions.append(d.copy())
             if on_step is not None:
@@ -225,11 +226,14 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     def state(d):
         ev = problem.evaluate(d)
         f_int, K = ev.f_int, ev.K
+        # each force on its own sets the scale: internal and contact forces
+        # may cancel each other when no load is prescribed
+        ref = max(np.linalg.norm(f_int), np.linalg.norm(f_ext), 1e-300)
         for contribution in contributions:
             f_c, K_c = contribution.evaluate(d, t)
+            ref = max(ref, np.linalg.norm(f_c))
             f_int, K = f_int + f_c, K + K_c
         r = f_ext - f_int
-        ref = max(np.linalg.norm(f_int), np.linalg.norm(f_ext), 1e-300)
         rel = np.linalg.norm(fit.out_of_balance(r)) / ref
         if not np.isfinite(rel):
             raise NonConvergence("residual is not finite")

@@ -113,7 +113,7 @@ class _Reactions:
 
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
-                 contributions=(), start=0.0, on_step=None):
+                 contributions=(), start=0.0, on_step=None, extrapolate=True):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -148,6 +148,12 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     on_step : callable, optional
         ``on_step(record, d, evaluation)`` after every converged step (the
         problem's state is committed), e.g. to write results as they come.
+    extrapolate : bool
+        Start each step's iterations from the last step's rate of change,
+        ``d + Δt (Δd/Δt)_last``, instead of from ``d``: the predictor then
+        starts close to the new state, in particular with a moving tool,
+        whose penalty would otherwise see the whole step's penetration.
+        If that start fails, the step is retried from ``d`` before it is cut.
 
     Returns
     -------
@@ -170,6 +176,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         return np.zeros(problem.N) if load is None else load(t)
 
     d = np.zeros(problem.N) if d0 is None else np.array(d0, dtype=float)
+    rate = None  # dd/dt of the last converged step
     history, solutions = [], []
     t_done = float(start)
     step_index = int(np.sum(targets <= t_done + 1e-14))
@@ -179,16 +186,21 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             for cut in range(max_cutbacks + 1):
                 t = t_done + dt
                 clock = time.perf_counter()
-                try:
-                    d_new, ev, lam, its, res, en = _newton(
-                        problem, d, t, C, g(t), f_ext(t), reactions_fit, tol,
-                        max_iterations, log, contributions)
-                except (NonConvergence, InvertedElementError, RuntimeError,
-                        np.linalg.LinAlgError) as err:
-                    log(f"step {step_index + 1}: t = {t:.6g} failed ({err}); "
-                        "cutting the step")
+                starts = ([d + dt * rate, d] if extrapolate and rate is not None else [d])
+                for guess in starts:
+                    try:
+                        d_new, ev, lam, its, res, en = _newton(
+                            problem, guess, t, C, g(t), f_ext(t), reactions_fit, tol,
+                            max_iterations, log, contributions)
+                    except (NonConvergence, InvertedElementError, RuntimeError,
+                            np.linalg.LinAlgError) as err:
+                        log(f"step {step_index + 1}: t = {t:.6g} failed ({err})")
+                        last_error = err
+                        continue
+                    break
+                else:
+                    log(f"step {step_index + 1}: cutting the step")
                     dt /= 2.0
-                    last_error = err
                     continue
                 break
             else:
@@ -201,6 +213,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             for contribution in contributions:
                 contribution.commit()
                 reactions.update(contribution.resultants())
+            rate = (d_new - d) / (t - t_done)
             d, t_done = d_new, t
             step_index += 1
             record = StepRecord(step_index, t, its, res, en,

@@ -135,11 +135,15 @@ def _gauges(sim, probes, d):
 
 
 class Progress:
-    """One updating line: step, load factor, Newton iterations, elapsed, ETA."""
+    """Step, load factor, Newton iterations, elapsed time and ETA: one
+    updating line on a terminal, a new line every 10 % of the load otherwise
+    (log files, pipes)."""
 
     def __init__(self, stream=sys.stderr, enabled=True):
         self.stream, self.enabled = stream, enabled
         self.start = time.perf_counter()
+        self.live = bool(getattr(stream, "isatty", lambda: False)())
+        self.next_line = 0.1
 
     def __call__(self, record):
         if not self.enabled:
@@ -148,13 +152,18 @@ class Progress:
         eta = elapsed * (1 - record.t) / max(record.t, 1e-12)
         width = 30
         done = int(round(width * record.t))
-        self.stream.write(f"\r[{'#' * done}{'.' * (width - done)}] step {record.step} "
-                          f"t={record.t:.3f} newton={record.iterations} "
-                          f"elapsed {elapsed:.1f}s eta {eta:.1f}s ")
+        text = (f"[{'#' * done}{'.' * (width - done)}] step {record.step} "
+                f"t={record.t:.3f} newton={record.iterations} "
+                f"elapsed {elapsed:.1f}s eta {eta:.1f}s")
+        if self.live:
+            self.stream.write(f"\r{text} ")
+        elif record.t >= self.next_line - 1e-12:
+            self.stream.write(text + "\n")
+            self.next_line = np.floor(record.t * 10 + 1e-9) / 10 + 0.1
         self.stream.flush()
 
     def close(self):
-        if self.enabled:
+        if self.enabled and self.live:
             self.stream.write("\n")
 
 

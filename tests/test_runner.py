@@ -101,3 +101,20 @@ def test_cli_runs_a_scene_file(tmp_path, capsys):
                  "--set", "steps.count=2", "--method", "fem"]) == 0
     assert "completed: 2 steps" in capsys.readouterr().out
     assert (tmp_path / "o" / "deformed.png").exists()
+
+
+def test_progress_prints_one_line_per_tenth_of_the_load_when_not_a_terminal():
+    import io
+    from types import SimpleNamespace
+
+    from skfem_rkpm.runner import Progress
+
+    stream = io.StringIO()
+    bar = Progress(stream)
+    for k in range(1, 41):
+        bar(SimpleNamespace(step=k, t=k / 40, iterations=2))
+    bar.close()
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 10
+    assert "\r" not in stream.getvalue()
+    assert lines[-1].startswith("[" + "#" * 30 + "] step 40 t=1.000 newton=2")

@@ -1,8 +1,10 @@
-"""Command line: ``skfem-rkpm run | compare | scenes``.
+"""Command line: ``skfem-rkpm run | compare | sweep | scenes``.
 
     skfem-rkpm scenes
     skfem-rkpm run ring [--method rkpm|fem] [--set key=value ...] [--out DIR] [--resume]
     skfem-rkpm compare ring [--set key=value ...] [--out DIR]
+    skfem-rkpm sweep ring --vary key=v1,v2,... [--vary ...] [--set key=value ...]
+               [--method rkpm|fem] [--scheduler ADDRESS] [--workers N] [--out DIR]
 
 A scene is a built-in name (``skfem-rkpm scenes``) or a path to a TOML file.
 """
@@ -73,6 +75,19 @@ def cmd_compare(args):
     return 0
 
 
+def cmd_sweep(args):
+    from .sweep import parse_vary, run_sweep
+
+    path = _scene_path(args.scene)
+    vary = dict(parse_vary(option) for option in args.vary)
+    out = Path(args.out or f"results/{path.stem}-sweep")
+    records = run_sweep(path, vary, args.set, args.method, out, args.scheduler,
+                        args.workers, progress=not args.quiet)
+    bad = [r for r in records if r["status"] != "completed"]
+    print(f"{len(records) - len(bad)} of {len(records)} runs completed -> {out / 'sweep.csv'}")
+    return 1 if bad else 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="skfem-rkpm", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -91,6 +106,23 @@ def main(argv=None):
             p.add_argument("--resume", action="store_true",
                            help="continue from the last finished step in --out")
         p.set_defaults(func=func)
+    p = sub.add_parser("sweep", help="run every combination of scene values on "
+                                     "dask.distributed (pip install skfem-rkpm[dask])")
+    p.add_argument("scene", help="built-in scene name or TOML file")
+    p.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2,...",
+                   help="values of one key, e.g. tools.platen.friction=0,0.1,stick; "
+                        "several --vary give the Cartesian product")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value in every run")
+    p.add_argument("--method", choices=("rkpm", "fem"))
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="existing dask scheduler, e.g. tcp://host:8786 (default: a "
+                        "local cluster)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: one "
+                                                "per core)")
+    p.add_argument("--out", help="sweep folder (default results/SCENE-sweep)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_sweep)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

@@ -72,3 +72,17 @@ def test_inner_diameter_orders_the_friction(method):
         changes.append(result.gauges[-1]["inner_mid x"] - 30.0)
     assert changes[0] > 0 > changes[2]
     assert changes[0] > changes[1] > changes[2] > changes[3]
+
+
+def test_corner_refined_ring_from_gmsh_is_homogeneous_without_friction():
+    """The gmsh-meshed variant (graded particles) keeps the exact
+    homogeneous state too: the .geo file is found next to the scene."""
+    scene = load_scene(builtin_scenes()["ring_refined"],
+                       ["tools.platen.friction=0.0", "steps.count=2",
+                        "tools.platen.motion=[0.0,-2.0]", "output.fields=false"])
+    sim = build(scene, "fem")
+    assert sim.basis.mesh.p.shape[1] == 16 * 11
+    result = run(sim, progress=False)
+    radius, force = exact_frictionless(0.1)
+    assert result.gauges[-1]["inner_mid x"] == pytest.approx(radius, rel=1e-5)
+    assert -result.history[-1].reactions["platen"][1] == pytest.approx(force, rel=1e-5)

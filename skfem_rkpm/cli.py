@@ -58,7 +58,8 @@ def cmd_scenes(args):
 def cmd_run(args):
     path = _scene_path(args.scene)
     out = Path(args.out or f"results/{path.stem}")
-    _, result = _run_one(path, args.set, args.method, out, args.resume, args.quiet)
+    settings = args.set + ([f"steps.solver={args.solver}"] if args.solver else [])
+    _, result = _run_one(path, settings, args.method, out, args.resume, args.quiet)
     return 0 if result.completed else 1
 
 
@@ -105,6 +106,9 @@ def main(argv=None):
             p.add_argument("--method", choices=("rkpm", "fem"))
             p.add_argument("--resume", action="store_true",
                            help="continue from the last finished step in --out")
+            p.add_argument("--solver", choices=("auto", "dense", "superlu", "pardiso",
+                                                "cholmod", "amg"),
+                           help="linear solver (default: the scene's steps.solver, auto)")
         p.set_defaults(func=func)
     p = sub.add_parser("sweep", help="run every combination of scene values on "
                                      "dask.distributed (pip install skfem-rkpm[dask])")

@@ -17,16 +17,12 @@ nodal values directly.
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 from skfem.element import ElementVector
+
+from .linsolve import DENSE_LIMIT, make_solver, solve_saddle_point  # noqa: F401
 
 __all__ = ["transformation", "solve", "solve_constrained", "linear_solve",
            "Constraint", "nodal_constraint", "weak_constraint"]
-
-#: systems up to this size are solved with dense LU (measured: SuperLU wins
-#: from about 600 unknowns on, even for RK tangents with 200 nonzeros per row)
-DENSE_LIMIT = 500
-
 
 def transformation(basis):
     """Λᵀ of a basis: its ``nodal_matrix`` or, for FEM bases, the identity."""
@@ -36,28 +32,14 @@ def transformation(basis):
     return nodal
 
 
-def linear_solve(A, b):
-    """Solve ``A x = b``: dense LU when small, sparse LU otherwise.
+def linear_solve(A, b, solver="auto"):
+    """Solve ``A x = b``; ``solver`` is a name or a :class:`~skfem_rkpm.linsolve.Solver`.
 
-    The sparse path is SuperLU with the minimum-degree ordering of ``Aᵀ + A``
-    in symmetric mode (RK, FEM and saddle-point matrices are structurally
-    symmetric), pivoting off the diagonal only where a pivot is below 1 % of
-    its column (the zero block of constraint rows).  Measured on an RK
-    elasticity saddle-point matrix with 8.5k unknowns and 217 nonzeros per
-    row: 0.45 s, against 14 s with SuperLU's default partial pivoting, whose
-    row exchanges destroy the ordering (38M instead of 7M factor entries).
-    If the residual is not small the solve is repeated with COLAMD and
-    partial pivoting.
+    The default picks dense LU when small and sparse LU (SuperLU, minimum
+    degree ordering of ``Aᵀ + A``, symmetric mode, COLAMD fallback) or an
+    installed faster backend otherwise; see :mod:`skfem_rkpm.linsolve`.
     """
-    if A.shape[0] <= DENSE_LIMIT:
-        dense = A.toarray() if sp.issparse(A) else np.asarray(A)
-        return np.linalg.solve(dense, b)
-    A = sp.csc_matrix(A)
-    x = splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
-             options=dict(SymmetricMode=True)).solve(b)
-    if np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b):
-        return x
-    return splu(A, permc_spec="COLAMD").solve(b)
+    return make_solver(solver).factor(A).solve(b)
 
 
 def _prescribed_values(D, x, N):
@@ -103,18 +85,15 @@ def solve(K, f, basis, D=None, x=None, return_reactions=False):
     return (d, reactions) if return_reactions else d
 
 
-def solve_constrained(K, f, C, g):
+def solve_constrained(K, f, C, g, solver="auto"):
     """Solve ``K d = f + Cᵀ λ`` subject to ``C d = g``; return ``d`` and ``λ``.
 
     ``λ`` are the reactions: the forces the constraints exert, conjugate to
-    the constrained nodal values.
+    the constrained nodal values.  ``solver`` is a backend name or a
+    :class:`~skfem_rkpm.linsolve.Solver` kept across calls (to reuse its
+    analysis); see :func:`~skfem_rkpm.linsolve.solve_saddle_point`.
     """
-    N = K.shape[0]
-    if C.shape[0] == 0:
-        return linear_solve(K, f), np.zeros(0)
-    A = sp.bmat([[sp.csr_matrix(K), C.T], [C, None]], format="csc")
-    sol = linear_solve(A, np.concatenate([f, g]))
-    return sol[:N], -sol[N:]
+    return solve_saddle_point(make_solver(solver), K, f, C, g)
 
 
 class Constraint:

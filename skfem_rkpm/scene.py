@@ -148,6 +148,9 @@ SCHEMA = {
         "tolerance": Key("float", 1e-6, check=_positive, doc="relative residual tolerance"),
         "max_iterations": Key("int", 20, check=_positive, doc="Newton iterations per step"),
         "max_cutbacks": Key("int", 8, check=_non_negative, doc="step halvings allowed"),
+        "solver": Key("str", "auto",
+                      choices=("auto", "dense", "superlu", "pardiso", "cholmod", "amg"),
+                      doc="linear solver of the Newton iterations (skfem_rkpm.linsolve)"),
     },
     "output": {
         "fields": Key("bool", True, doc="write fields.xdmf (+ .h5) for ParaView"),

@@ -20,6 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from .constraints import nodal_constraint, solve_constrained, weak_constraint
+from .linsolve import make_solver
 from .mechanics.problem import InvertedElementError
 
 __all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "newton_steps"]
@@ -113,7 +114,8 @@ class _Reactions:
 
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
-                 contributions=(), start=0.0, on_step=None, extrapolate=True):
+                 contributions=(), start=0.0, on_step=None, extrapolate=True,
+                 linear_solver="auto"):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -154,6 +156,11 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         starts close to the new state, in particular with a moving tool,
         whose penalty would otherwise see the whole step's penetration.
         If that start fails, the step is retried from ``d`` before it is cut.
+    linear_solver : str or skfem_rkpm.linsolve.Solver
+        Backend of the linearized solves (:func:`skfem_rkpm.linsolve.make_solver`):
+        ``"auto"``, ``"dense"``, ``"superlu"``, ``"pardiso"``, ``"cholmod"``
+        or ``"amg"``; one instance serves the whole run, so that its
+        symbolic analysis is reused while the sparsity pattern stays.
 
     Returns
     -------
@@ -167,6 +174,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     groups = [p.constraint(problem.basis) for p in prescribed]
     C = sp.vstack([c.C for c in groups] or [sp.csr_matrix((0, problem.N))], format="csr")
     reactions_fit = _Reactions(C)
+    linear_solver = make_solver(linear_solver)
+    described = None
 
     def g(t):
         return np.concatenate([c.R @ p.at(t, c.coordinates)
@@ -191,7 +200,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                     try:
                         d_new, ev, lam, its, res, en = _newton(
                             problem, guess, t, C, g(t), f_ext(t), reactions_fit, tol,
-                            max_iterations, log, contributions)
+                            max_iterations, log, contributions, linear_solver)
                     except (NonConvergence, InvertedElementError, RuntimeError,
                             np.linalg.LinAlgError) as err:
                         log(f"step {step_index + 1}: t = {t:.6g} failed ({err})")
@@ -209,6 +218,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 log(message)
                 return Result(d, history, solutions, False, message)
             problem.commit(ev)
+            if linear_solver.describe() != described:
+                described = linear_solver.describe()
+                log(f"linear solver: {described}")
             reactions = _reactions(prescribed, groups, lam)
             for contribution in contributions:
                 contribution.commit()
@@ -228,7 +240,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
 
 
 def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
-            contributions=()):
+            contributions=(), linear_solver="auto"):
     """Newton iterations of one step; returns the converged data or raises.
 
     Once the prescribed values are met, every update is damped by halving
@@ -259,7 +271,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     first_energy = None
     for it in range(1, max_iterations + 1):
         gap = g - C @ d
-        delta, _ = solve_constrained(K, r, C, gap)
+        delta, _ = solve_constrained(K, r, C, gap, solver=linear_solver)
         energy = abs(delta @ r)
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)

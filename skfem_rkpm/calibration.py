@@ -173,9 +173,11 @@ def friction_from_measurement(curves, height_reduction, id_change, stick_mu=None
                          f"μ = {keys}); the chart cannot be read there")
     label = {k: f"μ={k}" if k != "stick" else "sticking" for k in keys}
     if id_change > values[0] + tol:
+        hint = ("no friction lets the hole grow more: check the measurement"
+                if keys[0] == 0 else "add smaller μ to the sweep")
         raise ChartError(f"inner diameter change {id_change}% lies above the {label[keys[0]]} "
                          f"curve ({values[0]:.4g}% at {height_reduction}% height "
-                         f"reduction): outside the chart; add smaller μ to the sweep")
+                         f"reduction): outside the chart; {hint}")
     if id_change < values[-1] - tol:
         raise ChartError(f"inner diameter change {id_change}% lies below the "
                          f"{label[keys[-1]]} curve ({values[-1]:.4g}% at "

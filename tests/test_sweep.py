@@ -174,6 +174,7 @@ def test_cli_sweep_on_an_existing_scheduler(fem_sweep, client, tmp_path, capsys)
     captured = capsys.readouterr()
     assert "2 of 2 runs completed" in captured.out
     assert "done earlier" in captured.err and "[2/2]" in captured.err
+    assert "2 runs: completed 2, failed 0, running 0, pending 0" in captured.err
     rows = list(csv.DictReader(open(out / "sweep.csv", newline="")))
     assert [row[FRICTION] for row in rows] == ["0", "0.2"]
     assert rows[0]["run"] == records[0]["run"]

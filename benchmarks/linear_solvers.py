@@ -36,7 +36,7 @@ seconds of the process (``time.process_time``) and wall seconds.
 
 Run:  python benchmarks/linear_solvers.py                      (~30 minutes)
       python benchmarks/linear_solvers.py --dofs 1e3 1e4        (~1 minute)
-      python benchmarks/linear_solvers.py --cases fem --dofs 2e5
+      python benchmarks/linear_solvers.py --cases rk --dofs 2e5 --no-reference --backends pardiso
 """
 
 import os
@@ -139,6 +139,8 @@ def main():
     p.add_argument("--backends", nargs="+", default=None)
     p.add_argument("--budget", type=float, default=120.0,
                    help="seconds per factorization beyond which larger sizes are skipped")
+    p.add_argument("--no-reference", action="store_true",
+                   help="do not run scipy's default spsolve (slow at large sizes)")
     p.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.child:
@@ -160,7 +162,8 @@ def main():
                 n, nnz = A.shape[0], A.nnz
                 del A
                 ref = None
-                for backend in ["spsolve"] + list(backends):
+                reference = [] if args.no_reference else ["spsolve"]
+                for backend in reference + list(backends):
                     if backend in slow or (backend == "dense" and n > 12000):
                         continue  # dense LU: n² doubles, 1 GB at 12k
                     r = run_child(path, backend, args.budget)

@@ -27,6 +27,7 @@ import skfem
 __all__ = [
     "rectangle",
     "graded_rectangle",
+    "piecewise_rectangle",
     "gmsh_rectangle",
     "gmsh_plate_with_hole",
     "from_gmsh",
@@ -203,6 +204,30 @@ def graded_rectangle(lx, ly, nx, ny, ratio, kind="quad"):
     x = _geometric_nodes(lx, nx, ratio)
     y = _geometric_nodes(ly, ny, ratio)
     return _with_box_sides(_tensor_mesh(x, y, kind), 0.0, lx, 0.0, ly)
+
+
+def piecewise_rectangle(x, y, kind="quad"):
+    """Tensor-product mesh on given vertex coordinates, e.g. piecewise
+    uniform divisions that are denser where the deformation concentrates.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Strictly increasing vertex coordinates in each direction.
+    kind : {"quad", "tri"}
+        Cell type, as in :func:`rectangle`.
+
+    Returns
+    -------
+    skfem.MeshQuad1 or skfem.MeshTri1
+        Mesh with boundaries ``"left"``, ``"right"``, ``"bottom"``, ``"top"``.
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    for name, c in (("x", x), ("y", y)):
+        if c.ndim != 1 or len(c) < 2 or not np.all(np.diff(c) > 0):
+            raise ValueError(f"{name} coordinates must be at least two strictly "
+                             "increasing values")
+    return _with_box_sides(_tensor_mesh(x, y, kind), x[0], x[-1], y[0], y[-1])
 
 
 # ---------------------------------------------------------------------------
@@ -510,7 +535,10 @@ def from_gmsh():
 
 
 def load(path):
-    """Read a gmsh ``.msh`` file into a scikit-fem mesh.
+    """Read a gmsh ``.msh`` file, or mesh a ``.geo`` file, into a scikit-fem mesh.
+
+    A ``.geo`` file is meshed in 2D with the options it sets (for example
+    ``Mesh.RecombineAll = 1;`` for quadrilaterals).
 
     Parameters
     ----------
@@ -534,6 +562,8 @@ def load(path):
     with _gmsh_model("load"):
         try:
             gmsh.merge(str(path))
+            if path.suffix.lower() == ".geo":
+                gmsh.model.mesh.generate(2)
         except Exception as error:
             raise ValueError(f"gmsh cannot read mesh file '{path}': {error}") from error
         try:

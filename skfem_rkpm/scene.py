@@ -65,6 +65,20 @@ def _friction(v):
     return None if v >= 0 else 'must be a number >= 0 or "stick"'
 
 
+def _segments(v):
+    message = "must be a list of [end, cells] pairs with increasing ends and cells >= 1"
+    if not isinstance(v, list) or not v:
+        return message
+    ends = []
+    for item in v:
+        if not (isinstance(item, list) and len(item) == 2
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
+                and isinstance(item[1], int) and item[1] >= 1):
+            return message
+        ends.append(float(item[0]))
+    return None if all(b > a for a, b in zip(ends, ends[1:])) else message
+
+
 COMPONENTS = {"x": 0, "y": 1, "z": 2, "r": 0}
 
 SCHEMA = {
@@ -86,6 +100,11 @@ SCHEMA = {
                        doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform)"),
         "file": Key("str", doc="gmsh: path of a .msh or .geo file (relative to the scene file) "
                                "with named physical boundaries"),
+        "x_segments": Key("any", check=_segments,
+                          doc="rectangle: piecewise uniform cells in x, [[x_end, cells], ...] "
+                              "from x[0] to x[1] (replaces divisions[0] and grading)"),
+        "y_segments": Key("any", check=_segments,
+                          doc="rectangle: piecewise uniform cells in y, as x_segments"),
     },
     "discretization": {
         "support": Key("float", check=_positive,
@@ -289,6 +308,13 @@ def _check_combinations(scene, fail):
         for key in ("x", "y", "divisions"):
             if geometry[key] is None:
                 fail("geometry", f"a rectangle needs {key!r}")
+        for axis, key in enumerate(("x_segments", "y_segments")):
+            span = geometry["xy"[axis]]
+            if geometry[key] is not None:
+                first, last = geometry[key][0][0], geometry[key][-1][0]
+                if not (first > span[0] and abs(last - span[1]) <= 1e-9 * max(abs(span[1]), 1)):
+                    fail(f"geometry.{key}", f"segment ends must lie in ({span[0]:g}, "
+                                            f"{span[1]:g}] and the last must be {span[1]:g}")
     elif geometry["file"] is None:
         fail("geometry", "kind = \"gmsh\" needs 'file'")
     material = scene["material"]
@@ -412,6 +438,12 @@ def mesh_from(section, base=None):
         return load(path)
     (x0, x1), (y0, y1) = section["x"], section["y"]
     nx, ny = section["divisions"]
+    if section.get("x_segments") or section.get("y_segments"):
+        from .meshes import piecewise_rectangle
+
+        return piecewise_rectangle(_breaks(x0, x1, nx, section.get("x_segments")),
+                                   _breaks(y0, y1, ny, section.get("y_segments")),
+                                   kind=section["cells"])
     grading = section["grading"] or [1.0, 1.0]
     if grading != [1.0, 1.0]:
         if grading[0] != grading[1]:
@@ -420,6 +452,17 @@ def mesh_from(section, base=None):
         mesh = graded_rectangle(x1 - x0, y1 - y0, nx, ny, grading[0], kind=section["cells"])
         return mesh.translated((x0, y0))
     return rectangle(x1 - x0, y1 - y0, nx, ny, kind=section["cells"], origin=(x0, y0))
+
+
+def _breaks(start, stop, cells, segments):
+    """Vertex coordinates of piecewise uniform divisions (``[[end, cells], ...]``)."""
+    if not segments:
+        return np.linspace(start, stop, cells + 1)
+    parts, a = [np.array([start])], start
+    for end, n in segments:
+        parts.append(np.linspace(a, end, n + 1)[1:])
+        a = end
+    return np.concatenate(parts)
 
 
 def spacing_radius(mesh, section):

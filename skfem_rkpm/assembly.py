@@ -27,6 +27,9 @@ CELLS_PER_BLOCK = 256
 #: entries of the largest per-block temporary (fewer cells per block when a
 #: cell has many local functions): keeps the blocks in cache
 BLOCK_ENTRIES = 2**18
+#: the gradient tables are also kept cell by cell (in the layouts of the
+#: batched products) when they have at most this many entries
+CACHE_ENTRIES = 2**22
 
 
 @dataclass
@@ -136,6 +139,7 @@ class Assembler:
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         self.element_dofs = (c * L.element_nodes[:, None, :]
                              + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)
+        self._cache = {}
         self._build_pattern()
 
     def _build_pattern(self):
@@ -145,7 +149,8 @@ class Assembler:
         of the cell-particle incidence; each local entry finds its place by
         binary search in the sorted scalar keys, and scalar entries expand to
         ``c x c`` blocks analytically.  The scatter map follows the local
-        matrices cell by cell, in the order (cell, a, c, b, d).
+        matrices cell by cell, in the order (cell, a, c, d, b): test slot
+        ``a``, its component ``c``, the trial component ``d``, trial slot ``b``.
         """
         L = self.layout
         c, (nloc, nelems), n = L.ncomp, L.element_nodes.shape, L.nscalar
@@ -165,16 +170,15 @@ class Assembler:
         # c x c blocks of the scalar row in column order
         length = np.diff(indptr_s)
         start = indptr_s[:-1]
-        # entry (cell, a, c_a, b, c_b) goes to c² start_I + c_a c length_I
+        # entry (cell, a, c_a, c_b, b) goes to c² start_I + c_a c length_I
         # + c (position - start_I) + c_b, with I the particle of slot a
-        dtype = np.int32 if c * c * len(keys) < 2**31 else np.int64
-        first = start[nodes].astype(np.int64)[:, :, None]
-        block = (c * c * first + c * (position - first)).astype(dtype)  # (E, a, b)
-        row = (c * length[nodes]).astype(dtype)[:, :, None]  # (E, a, 1)
-        scatter = np.empty((nelems, nloc, c, nloc, c), dtype=dtype)
+        first = start[nodes].astype(np.intp)[:, :, None]
+        block = c * c * first + c * (position - first)  # (E, a, b)
+        row = (c * length[nodes]).astype(np.intp)[:, :, None]  # (E, a, 1)
+        scatter = np.empty((nelems, nloc, c, c, nloc), dtype=np.intp)
         for c_a in range(c):
             for c_b in range(c):
-                np.add(block, c_a * row + c_b, out=scatter[:, :, c_a, :, c_b])
+                np.add(block, c_a * row + c_b, out=scatter[:, :, c_a, c_b, :])
         self._scatter = scatter.reshape(-1)
         self.nnz = c * c * len(keys)
         self.indptr = np.concatenate([[0], np.cumsum(np.repeat(c * length, c))])
@@ -196,8 +200,13 @@ class Assembler:
         for start in range(0, nelems, step):
             yield slice(start, min(start + step, nelems))
 
-    def _to_csr(self, local):
-        """Scatter local matrices (nelems, nbf, nbf) into the cached CSR pattern."""
+    def matrix(self, local):
+        """Sum local matrices into the cached CSR pattern.
+
+        ``local`` holds one matrix per cell in the order of the scatter map,
+        (nelems, nloc, c, c, nloc) or any shape with as many entries
+        (:meth:`local_bilinear`, :meth:`local_outer`).
+        """
         data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
         return sp.csr_matrix((data, self._pattern_cols, self.indptr),
                              shape=(self.N, self.N))
@@ -205,45 +214,71 @@ class Assembler:
     def bilinear(self, C):
         """``∫ ∂_l Ñ_a C_{c l d m} ∂_m N_b``.
 
-        Per block of cells, ``R = C ∂N`` of the trial functions is formed
-        first, then one batched matrix product with the weighted test
-        gradients gives the local matrices.
-
         Parameters
         ----------
         C : ndarray, shape (c, dim, c, dim) or (c, dim, c, dim, nelems, nqp)
             Tangent (scalar fields: ``c = 1``).
         """
+        return self.matrix(self.local_bilinear(C))
+
+    def local_bilinear(self, C, out=None):
+        """Local matrices of :meth:`bilinear`, shape (nelems, nloc, c, c, nloc).
+
+        Per block of cells, ``R = C ∂N`` of the trial functions is formed
+        first (a 3-term product per quadrature point), then one batched
+        matrix product with the weighted test gradients gives the local
+        matrices.  A tangent per point is read in the layout
+        (nelems, nqp, dim, c, c, dim), without a copy if ``C`` is a
+        transposed view of an array stored that way.  ``out`` (an earlier
+        result) is overwritten instead of allocating new local matrices.
+        """
         L = self.layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         C = np.asarray(C, dtype=float)
-        nbf = nloc * c
-        local = np.empty((nelems, nbf, nbf))
-        for s in self._blocks(L.dim * L.dx.shape[1] * c * nbf):  # size of R
-            E = s.stop - s.start
-            R = self._tangent_trial(C, s)
-            T = self._weighted_test_grads(s)
-            # local[E, a, (c b d)] = Σ_(l q) T[E, a, (l q)] R[E, (l q), (c b d)]
-            np.matmul(T, R, out=local[s].reshape(E, nloc, c * nbf))
-        return self._to_csr(local)
-
-    def _tangent_trial(self, C, s):
-        """``R[(l q), (c b d)] = Σ_m C_{c l d m} ∂_m N_b`` on cells ``s``.
-
-        Shape (cells, dim * nqp, c * nloc * c); ``q`` is the quadrature point.
-        """
-        G = self.layout.trial_grads[:, :, s]
-        if C.ndim == 6:
-            R = np.einsum("cldmEq,mbEq->Elqcbd", C[..., s, :], G)
+        dim, nqp = L.dim, L.dx.shape[1]
+        if C.ndim == 6:  # (E, q, l, c, d, m) as a matrix (l c d) x m per point
+            C = np.ascontiguousarray(C.transpose(4, 5, 1, 0, 2, 3)).reshape(
+                nelems, nqp, dim * c * c, dim)
         else:
-            R = np.einsum("cldm,mbEq->Elqcbd", C, G)
-        E, dim, nqp = R.shape[:3]
-        return R.reshape(E, dim * nqp, -1)
+            C = C.transpose(1, 0, 2, 3).reshape(dim * c * c, dim)
+        local = np.empty((nelems, nloc, c, c, nloc)) if out is None else out
+        for s in self._blocks(dim * nqp * c * c * nloc):  # size of R
+            E = s.stop - s.start
+            # R[E, q, (l c d), b] = Σ_m C[E, q, (l c d), m] ∂_m N_b
+            R = np.matmul(C[s] if C.ndim == 4 else C, self._trial_grads(s))
+            # local[E, a, (c d b)] = Σ_(q l) T[E, a, (q l)] R[E, (q l), (c d b)]
+            np.matmul(self._weighted_test_grads(s), R.reshape(E, nqp * dim, c * c * nloc),
+                      out=local[s].reshape(E, nloc, c * c * nloc))
+        return local
+
+    def _cached(self, key, s, compute):
+        """``compute(s)``, from a copy for all cells kept if small enough."""
+        full = self._cache.get(key)
+        if full is None:
+            if self.layout.trial_grads.size > CACHE_ENTRIES:
+                return compute(s)
+            full = self._cache[key] = np.ascontiguousarray(compute(slice(None)))
+        return full[s]
+
+    def _trial_grads(self, s):
+        """``∂_m N_b`` on cells ``s``, shape (cells, nqp, dim, nloc)."""
+        return self._cached("trial", s, lambda s: self.layout.trial_grads[:, :, s]
+                            .transpose(2, 3, 0, 1))
 
     def _weighted_test_grads(self, s):
-        """``∂_l Ñ_a dΩ`` on cells ``s``, shape (cells, nloc, dim * nqp)."""
-        L = self.layout
-        T = (L.test_grads[:, :, s] * L.dx[s]).transpose(2, 1, 0, 3)  # (E, a, l, q)
+        """``∂_l Ñ_a dΩ`` on cells ``s``, shape (cells, nloc, nqp * dim)."""
+        return self._cached("test", s,
+                            lambda s: self._weighted_grads(s, self.layout.test_grads))
+
+    def _weighted_trial_grads(self, s):
+        """``∂_l N_a dΩ`` on cells ``s``, shape (cells, nloc, nqp * dim)."""
+        return self._cached("weighted trial", s,
+                            lambda s: self._weighted_grads(s, self.layout.trial_grads))
+
+    def _weighted_grads(self, s, grads):
+        """``grads`` (dim, nloc, nelems, nqp) times ``dΩ`` on cells ``s``, shape
+        (cells, nloc, nqp * dim)."""
+        T = (grads[:, :, s] * self.layout.dx[s]).transpose(2, 1, 3, 0)  # (E, a, q, l)
         return T.reshape(T.shape[0], T.shape[1], -1)
 
     def mass(self, density=1.0):
@@ -256,10 +291,10 @@ class Assembler:
             V = L.values[:, s].transpose(1, 0, 2)  # (E, a, q)
             np.matmul(V * (rho[s] * L.dx[s])[:, None, :], V.transpose(0, 2, 1),
                       out=scalar[s])
-        local = np.zeros((nelems, nloc, c, nloc, c))
+        local = np.zeros((nelems, nloc, c, c, nloc))
         for comp in range(c):  # δ_cd: the same scalar block on each component
-            local[:, :, comp, :, comp] = scalar
-        return self._to_csr(local.reshape(nelems, nloc * c, nloc * c))
+            local[:, :, comp, comp, :] = scalar
+        return self.matrix(local)
 
     def cell_vectors(self, P, test=True):
         """Per-cell vectors ``∫_e ∂_l N_a P_{c l}``, shape (nloc * c, nelems).
@@ -269,9 +304,12 @@ class Assembler:
         L = self.layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         P = np.asarray(P, dtype=float).reshape(c, L.dim, nelems, -1)
-        grads = L.test_grads if test else L.trial_grads
-        local = np.einsum("laEq,clEq,Eq->acE", grads, P, L.dx, optimize=True)
-        return local.reshape(nloc * c, nelems)
+        everything = slice(None)
+        grads = (self._weighted_test_grads(everything) if test
+                 else self._weighted_trial_grads(everything))
+        # local[E, a, c] = Σ_(q l) ∂_l N_a dΩ [E, a, (q l)] P[E, (q l), c]
+        local = grads @ P.transpose(2, 3, 1, 0).reshape(nelems, -1, c)
+        return local.reshape(nelems, nloc * c).T
 
     def scatter(self, local):
         """Sum per-cell vectors (nloc * c, nelems) into a global vector."""
@@ -284,10 +322,34 @@ class Assembler:
 
     def outer(self, u, w):
         """Matrix of the per-cell rank-one blocks ``u_e ⊗ w_e`` (nloc * c, nelems)."""
-        return self._to_csr(u.T[:, :, None] * w.T[:, None, :])
+        return self.matrix(self.local_outer(u, w))
+
+    def local_outer(self, u, w):
+        """Local matrices of :meth:`outer`, shape (nelems, nloc, c, c, nloc)."""
+        U, W = self._outer_factors(u, w)
+        return U * W
+
+    def add_outer(self, local, u, w):
+        """Add the blocks of :meth:`local_outer` to ``local`` in place, block by
+        block of cells (no temporary as large as ``local``)."""
+        U, W = self._outer_factors(u, w)
+        L = self.layout
+        for s in self._blocks(L.ncomp**2 * L.element_nodes.shape[0]**2):
+            local[s] += U[s] * W[s]
+        return local
+
+    def _outer_factors(self, u, w):
+        """``u`` as (nelems, nloc, c, 1, 1) and ``w`` as (nelems, 1, 1, c, nloc)."""
+        L = self.layout
+        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
+        U = u.T.reshape(nelems, nloc, c, 1, 1)
+        W = w.T.reshape(nelems, nloc, c).transpose(0, 2, 1)[:, None, None]
+        return U, W
 
     def gradient(self, u):
         """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp)."""
         L = self.layout
         U = np.asarray(u).reshape(L.nscalar, L.ncomp)[L.element_nodes]  # (nloc, nelems, c)
-        return np.einsum("maEq,aEc->cmEq", L.trial_grads, U, optimize=True)
+        # H[E, q, m, c] = Σ_a ∂_m N_a [E, q, m, a] U[E, a, c]
+        H = self._trial_grads(slice(None)) @ U.transpose(1, 0, 2)[:, None]
+        return H.transpose(3, 2, 0, 1)

@@ -16,7 +16,7 @@ in 3x3 algebra:
 import numpy as np
 
 __all__ = ["MODELS", "entries", "deformation_gradient", "to_assembler",
-           "spatial_gradients"]
+           "from_entries", "spatial_gradients"]
 
 MODELS = ("plane_strain", "axisymmetric", "3d")
 
@@ -60,6 +60,36 @@ def to_assembler(P, A, model, shape):
         for (d, m), (k, L) in pairs:
             A_ext[c, l, d, m] = A[:, i, J, k, L].reshape(shape)
     return P_ext, A_ext
+
+
+def from_entries(P, A, model, shape):
+    """Stress and tangent given at the model's entries, in assembler layout.
+
+    ``P`` (n, m) and ``A`` (n, m, m) hold the 3x3 entries ``(i, J)`` of
+    :func:`entries` in its order (``A[(i, J), (k, L)] = ∂P_iJ/∂F_kL``).
+    Returns ``P_ext`` (c, l, nelems, nqp) and ``A_ext`` (c, l, c, l, nelems,
+    nqp), the latter a transposed view of an array stored per point as
+    (nelems, nqp, l, c, c, l), the layout :meth:`Assembler.local_bilinear`
+    reads without a copy (``A_ext`` is None if ``A`` is).
+    """
+    pairs = entries(model)
+    ncomp = 3 if model == "3d" else 2
+    nrows = 3 if model != "plane_strain" else 2
+    m = len(pairs)
+    slot = np.full((ncomp, nrows), m)  # slot m holds a zero
+    for k, ((c, l), _) in enumerate(pairs):
+        slot[c, l] = k
+    n = P.shape[0]
+    P_pad = np.concatenate([P, np.zeros((n, 1))], axis=1)
+    P_ext = P_pad[:, slot].reshape(shape + (ncomp, nrows)).transpose(2, 3, 0, 1)
+    if A is None:
+        return P_ext, None
+    A_pad = np.zeros((n, m + 1, m + 1))
+    A_pad[:, :m, :m] = A
+    rows = slot.T[:, :, None, None]  # (l, c) -> entry (c, l)
+    cols = slot[None, None]  # (d, m) -> entry (d, m)
+    A_points = A_pad[:, rows, cols].reshape(shape + (nrows, ncomp, ncomp, nrows))
+    return P_ext, A_points.transpose(3, 2, 4, 5, 0, 1)
 
 
 def spatial_gradients(grad_X, F):

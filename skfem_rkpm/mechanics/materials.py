@@ -32,9 +32,6 @@ import numpy as np
 __all__ = ["Hardening", "perfect", "linear", "swift", "J2Material", "MaterialState"]
 
 I3 = np.eye(3)
-I_SYM = 0.5 * (np.einsum("ik,jl->ijkl", I3, I3) + np.einsum("il,jk->ijkl", I3, I3))
-ONE_ONE = np.einsum("ij,kl->ijkl", I3, I3)
-I_DEV = I_SYM - ONE_ONE / 3.0
 
 
 @dataclass(frozen=True)
@@ -87,20 +84,19 @@ def _spectral(b):
     return np.linalg.eigh(b)
 
 
-def _log_derivative(lam, vec):
-    """``L = ∂ ln(b)/∂b`` for symmetric ``b = Σ λ_A n_A ⊗ n_A``.
+def _log_divided_differences(lam):
+    """``θ_AB = (ln λ_A - ln λ_B)/(λ_A - λ_B)``, ``θ_AA = 1/λ_A`` (n, 3, 3).
 
-    ``L_ijkl = Σ_AB θ_AB n_iA n_jB ½(n_kA n_lB + n_lA n_kB)`` with
-    ``θ_AA = 1/λ_A`` and the divided differences
-    ``θ_AB = (ln λ_A - ln λ_B)/(λ_A - λ_B)`` (stable as eigenvalues meet).
+    The eigen-components of ``L = ∂ ln(b)/∂b``: for symmetric
+    ``b = Σ λ_A n_A ⊗ n_A``, ``L : X = Σ_AB θ_AB (n_Aᵀ X n_B) n_A ⊗ n_B``;
+    stable as eigenvalues meet, and symmetrized so that ``θ_AB = θ_BA`` to
+    the last bit.
     """
     la, lb = lam[:, :, None], lam[:, None, :]
     x = (la - lb) / lb
     with np.errstate(invalid="ignore", divide="ignore"):
         theta = np.where(np.abs(x) > 1e-12, np.log1p(x) / (x * lb), 1.0 / lb)
-    outer = np.einsum("niA,njB->nijAB", vec, vec)  # n_iA n_jB
-    L = np.einsum("nAB,nijAB,nklAB->nijkl", theta, outer, outer)
-    return 0.5 * (L + L.transpose(0, 1, 2, 4, 3))
+    return 0.5 * (theta + theta.transpose(0, 2, 1))
 
 
 class J2Material:
@@ -187,23 +183,62 @@ class J2Material:
         _, H = self.hardening(alpha_n + dgamma)
         return dgamma, H
 
-    def _small_strain_tangent(self, tau_dev_dir, dgamma, q_trial, H):
-        """Consistent ``D = ∂τ/∂ε_e^trial`` (n, 3, 3, 3, 3), Simo & Hughes Box 3.2."""
+    def _principal_tangent(self, lam, dev_dir, dgamma, q_trial, H):
+        """The consistent tangent ``½ D : L : B`` in the principal frame of ``b``.
+
+        In the eigenbasis ``n_A`` of ``b`` (eigenvalues ``λ_A``) a change
+        ``X = dF F⁻¹`` gives ``db = X b + b Xᵀ`` and the Kirchhoff stress
+        changes by
+
+            dτ_AA = Σ_C D_AC X_CC,
+            dτ_AB = G θ₁ θ_AB (λ_B X_AB + λ_A X_BA)     (A ≠ B),
+
+        with the principal block ``D_AC = K + 2G θ₁ (δ_AC - 1/3) - 2G θ̄ ν_A ν_C``
+        of the small-strain consistent tangent (Simo & Hughes Box 3.2;
+        ``θ₁ = 1``, ``θ̄ = 0`` where elastic), ``ν`` the principal unit
+        deviatoric direction and ``θ_AB`` the eigen-components of ``L``
+        (:func:`_log_divided_differences`).
+
+        Returns ``D`` (n, 3, 3) and the shear factors
+        ``g_AB = G θ₁ θ_AB λ_B`` (n, 3, 3), zero on the diagonal.
+        """
         G, K = self.G, self.K
-        n = len(dgamma)
-        D = np.broadcast_to(K * ONE_ONE + 2.0 * G * I_DEV, (n, 3, 3, 3, 3)).copy()
+        theta1 = np.ones_like(dgamma)
+        theta_bar = np.zeros_like(dgamma)
         plastic = dgamma > 0
         if np.any(plastic):
-            theta1 = 1.0 - 3.0 * G * dgamma[plastic] / q_trial[plastic]
-            theta_bar = 3.0 * G / (3.0 * G + H[plastic]) - (1.0 - theta1)
-            N = tau_dev_dir[plastic]
-            D[plastic] = (K * ONE_ONE + 2.0 * G * theta1[:, None, None, None, None] * I_DEV
-                          - 2.0 * G * theta_bar[:, None, None, None, None]
-                          * np.einsum("nij,nkl->nijkl", N, N))
-        return D
+            theta1[plastic] = 1.0 - 3.0 * G * dgamma[plastic] / q_trial[plastic]
+            theta_bar[plastic] = 3.0 * G / (3.0 * G + H[plastic]) - (1.0 - theta1[plastic])
+        D = ((K - 2.0 * G / 3.0 * theta1)[:, None, None]
+             + (2.0 * G * theta1)[:, None, None] * I3
+             - (2.0 * G * theta_bar)[:, None, None] * dev_dir[:, :, None] * dev_dir[:, None, :])
+        g = (G * theta1)[:, None, None] * _log_divided_differences(lam) * lam[:, None, :]
+        g[:, [0, 1, 2], [0, 1, 2]] = 0.0
+        return D, g
+
+    def _tangent(self, vec, Finv, P, D, g, entries):
+        """``A_iJkL = ∂P_iJ/∂F_kL`` at the ``entries`` (i, J), shape (n, m, m).
+
+        ``A = ½ (D : L : B)_ijkl F⁻¹_Jj F⁻¹_Ll - τ_il F⁻¹_Jk F⁻¹_Ll`` evaluated
+        in the principal frame: with ``Q`` the eigenvectors (columns) and
+        ``W = F⁻¹ Q``, ``Z_(iJ),(AB) = Q_iA W_JB`` maps principal components
+        to ``(i, J)`` and ``A = Z Ŝ Zᵀ - P_iL F⁻¹_Jk``, ``Ŝ`` the principal
+        tangent of :meth:`_principal_tangent`.
+        """
+        rows = np.array([i for i, _ in entries])
+        cols = np.array([J for _, J in entries])
+        W = Finv @ vec
+        Z = vec[:, rows, :, None] * W[:, cols, None, :]  # (n, m, A, B)
+        Y = g[:, None] * (Z + Z.transpose(0, 1, 3, 2))
+        diag = np.arange(3)
+        Y[:, :, diag, diag] = Z[:, :, diag, diag] @ D
+        n, m = Z.shape[:2]
+        A = Y.reshape(n, m, 9) @ Z.reshape(n, m, 9).transpose(0, 2, 1)
+        A -= P[:, rows[:, None], cols[None, :]] * Finv[:, cols[:, None], rows[None, :]]
+        return A
 
     # -- finite strain ----------------------------------------------------------
-    def update(self, F, state, tangent=True):
+    def update(self, F, state, tangent=True, entries=None):
         """Stress, new state and consistent tangent for deformation gradients ``F``.
 
         Parameters
@@ -213,6 +248,11 @@ class J2Material:
             State at the start of the step (not modified).
         tangent : bool
             Also return ``A = ∂P/∂F``.
+        entries : sequence of (i, J), optional
+            Return the tangent only between these entries of ``P`` and
+            ``F``, as an (n, m, m) array ``A[(i, J), (k, L)]`` (e.g. the
+            four in-plane entries of plane strain); default all nine, as
+            (n, 3, 3, 3, 3).
 
         Returns
         -------
@@ -221,7 +261,7 @@ class J2Material:
         tau : ndarray, shape (n, 3, 3)
             Kirchhoff stress (``σ = τ / det F``).
         new_state : MaterialState
-        A : ndarray, shape (n, 3, 3, 3, 3) or None
+        A : ndarray, shape (n, 3, 3, 3, 3) or (n, m, m), or None
         """
         Finv = np.linalg.inv(F)
         b = F @ state.Cp_inv @ F.transpose(0, 2, 1)
@@ -231,7 +271,7 @@ class J2Material:
         tau_p, eps, alpha, dgamma, q_trial, H = self.return_map(eps_trial, state.alpha)
 
         def tensor(principal):
-            return np.einsum("niA,nA,njA->nij", vec, principal, vec)
+            return (vec * principal[:, None, :]) @ vec.transpose(0, 2, 1)
 
         tau = tensor(tau_p)
         b_new = tensor(np.exp(2.0 * eps))
@@ -244,11 +284,10 @@ class J2Material:
         dev_trial = eps_trial - eps_trial.mean(axis=1, keepdims=True)
         norm = np.linalg.norm(dev_trial, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            N = tensor(np.where(norm[:, None] > 0, dev_trial / norm[:, None], 0.0))
-        D = self._small_strain_tangent(N, dgamma, q_trial, H)
-        L = _log_derivative(lam, vec)
-        B = np.einsum("ik,njl->nijkl", I3, b) + np.einsum("jk,nil->nijkl", I3, b)
-        DLB = np.einsum("nijab,nabcd,ncdkl->nijkl", D, L, B, optimize=True)
-        A = (0.5 * np.einsum("nijkl,nJj,nLl->niJkL", DLB, Finv, Finv, optimize=True)
-             - np.einsum("nil,nJk,nLl->niJkL", tau, Finv, Finv, optimize=True))
-        return P, tau, new_state, A
+            dev_dir = np.where(norm[:, None] > 0, dev_trial / norm[:, None], 0.0)
+        D, g = self._principal_tangent(lam, dev_dir, dgamma, q_trial, H)
+        full = entries is None
+        if full:
+            entries = [(i, J) for i in range(3) for J in range(3)]
+        A = self._tangent(vec, Finv, P, D, g, entries)
+        return P, tau, new_state, A.reshape(-1, 3, 3, 3, 3) if full else A

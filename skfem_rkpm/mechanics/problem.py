@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..assembly import Assembler
-from .kinematics import deformation_gradient, to_assembler
+from .kinematics import deformation_gradient, entries, from_entries
 from .materials import MaterialState
 
 __all__ = ["InvertedElementError", "Evaluation", "SolidProblem"]
@@ -71,6 +71,11 @@ class SolidProblem:
         self.shape = self.assembler.layout.dx.shape
         self.npoints = int(np.prod(self.shape))
         self.state = MaterialState.virgin(self.npoints)
+        # the 3x3 entries (i, J) of F and P that the model uses
+        self.entries = [e for _, e in entries(model)]
+        self._rows = np.array([i for i, _ in self.entries])
+        self._cols = np.array([J for _, J in self.entries])
+        self._local = None  # local tangent matrices, reused by every evaluation
 
     @property
     def N(self):
@@ -101,10 +106,11 @@ class SolidProblem:
                 f"({', '.join(f'{v:.4g}' for v in x)})", bad)
         if self.locking == "fbar":
             return self._evaluate_fbar(F, J, state, tangent)
-        P, tau, new_state, A = self.material.update(F, state, tangent=tangent)
-        P_ext, A_ext = to_assembler(P, A, self.model, self.shape)
+        P, tau, new_state, A = self.material.update(F, state, tangent=tangent,
+                                                    entries=self.entries)
+        P_ext, A_ext = from_entries(self._at_entries(P), A, self.model, self.shape)
         f_int = self.assembler.linear(P_ext)
-        K = self.assembler.bilinear(A_ext) if tangent else None
+        K = self._tangent_matrix(A_ext) if tangent else None
         return Evaluation(f_int, K, F, P, tau, new_state)
 
     def _evaluate_fbar(self, F, J, state, tangent):
@@ -118,6 +124,10 @@ class SolidProblem:
         ``Â = γ s [A - (1/n) (A:F_M) ⊗ F⁻ᵀ] + (1 - 1/n) γ P̄ ⊗ F⁻ᵀ`` and a
         per-cell rank-one part through ``∂P̃/∂J̄ = (γ/J̄)[(s/n) A:F_M - (1 - 1/n) P̄]``
         and ``∂J̄/∂d = ∫_e J F⁻ᵀ : ∇N / V_e`` (``s = β^{1/n}``, ``γ = β^{1/n-1}``).
+
+        The tangents are formed at the model's entries only: ``F_M`` is zero
+        outside them, so ``A:F_M`` needs no others.  The rank-one part is added
+        to the local matrices before they are summed.
         """
         dV = self.assembler.layout.dx
         Jq = J.reshape(self.shape)
@@ -130,27 +140,42 @@ class SolidProblem:
         beta = Jbar / J
         s, gamma = beta ** (1.0 / n), beta ** (1.0 / n - 1.0)
         Fbar = F + (s - 1.0)[:, None, None] * FM
-        Pbar, taubar, new_state, A = self.material.update(Fbar, state, tangent=tangent)
+        Pbar, taubar, new_state, A = self.material.update(Fbar, state, tangent=tangent,
+                                                          entries=self.entries)
         P = gamma[:, None, None] * Pbar
         tau = (J / Jbar)[:, None, None] * taubar  # J σ with σ the Cauchy stress of F̄
         if not tangent:
-            P_ext, _ = to_assembler(P, None, self.model, self.shape)
+            P_ext, _ = from_entries(self._at_entries(P), None, self.model, self.shape)
             return Evaluation(self.assembler.linear(P_ext), None, F, P, tau, new_state)
-        FinvT = np.linalg.inv(F).transpose(0, 2, 1)
-        AF = np.einsum("niJmN,nmN->niJ", A, FM)
-        A_hat = ((gamma * s)[:, None, None, None, None]
-                 * (A - np.einsum("niJ,nkL->niJkL", AF, FinvT) / n)
-                 + ((1.0 - 1.0 / n) * gamma)[:, None, None, None, None]
-                 * np.einsum("niJ,nkL->niJkL", Pbar, FinvT))
-        dP_dJbar = (gamma / Jbar)[:, None, None] * ((s / n)[:, None, None] * AF
-                                                  - (1.0 - 1.0 / n) * Pbar)
-        P_ext, A_ext = to_assembler(P, A_hat, self.model, self.shape)
-        dP_ext, _ = to_assembler(dP_dJbar, None, self.model, self.shape)
-        dJ_ext, _ = to_assembler(J[:, None, None] * FinvT, None, self.model, self.shape)
+        FinvT = self._at_entries(np.linalg.inv(F).transpose(0, 2, 1))
+        Pbar = self._at_entries(Pbar)
+        AF = (A @ self._at_entries(FM)[:, :, None])[:, :, 0]
+        A_hat = ((gamma * s)[:, None, None] * (A - AF[:, :, None] * FinvT[:, None, :] / n)
+                 + ((1.0 - 1.0 / n) * gamma)[:, None, None]
+                 * Pbar[:, :, None] * FinvT[:, None, :])
+        dP_dJbar = (gamma / Jbar)[:, None] * ((s / n)[:, None] * AF - (1.0 - 1.0 / n) * Pbar)
+        P_ext, A_ext = from_entries(self._at_entries(P), A_hat, self.model, self.shape)
+        dP_ext, _ = from_entries(dP_dJbar, None, self.model, self.shape)
+        dJ_ext, _ = from_entries(J[:, None] * FinvT, None, self.model, self.shape)
         u = self.assembler.cell_vectors(dP_ext)
         w = self.assembler.cell_vectors(dJ_ext, test=False) / np.sum(dV, axis=1)
-        K = self.assembler.bilinear(A_ext) + self.assembler.outer(u, w)
+        K = self._tangent_matrix(A_ext, (u, w))
         return Evaluation(self.assembler.linear(P_ext), K, F, P, tau, new_state)
+
+    def _tangent_matrix(self, A_ext, rank_one=None):
+        """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w``.
+
+        The local matrices are written into the same buffer every time:
+        fresh memory of that size costs more to touch than to compute.
+        """
+        self._local = self.assembler.local_bilinear(A_ext, out=self._local)
+        if rank_one is not None:
+            self.assembler.add_outer(self._local, *rank_one)
+        return self.assembler.matrix(self._local)
+
+    def _at_entries(self, T):
+        """The model's entries of 3x3 tensors (n, 3, 3), shape (n, m)."""
+        return T[:, self._rows, self._cols]
 
     def commit(self, evaluation):
         """Accept the state of a converged evaluation."""

@@ -78,6 +78,8 @@ def main():
     result = run(sim, args.run_dir, progress=False)
     seconds = time.perf_counter() - start
     history = result.history
+    if not history:
+        raise SystemExit(f"{scene['model']['title']} ({sim.method}): {result.message}")
     depth = np.array([r.t * travel for r in history])
     force = np.array([-r.reactions["punch"][1] for r in history])
     its = [r.iterations for r in history]

@@ -890,6 +890,24 @@ def _outer(a, b):
     return np.einsum("ni,nj->nij", a, b)
 
 
+def _block_diagonal(blocks):
+    """Sparse block-diagonal matrix of (n, m, m) blocks."""
+    n, m, _ = blocks.shape
+    base = m * np.arange(n)
+    rows = np.broadcast_to(base[:, None, None] + np.arange(m)[None, :, None], blocks.shape)
+    cols = np.broadcast_to(base[:, None, None] + np.arange(m)[None, None, :], blocks.shape)
+    return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
+                         shape=(n * m, n * m))
+
+
+def _directional(G, vectors):
+    """Rows ``v_qᵀ G_q`` (sparse n × N): the derivative of ``v_q · u(x_q)``."""
+    n = vectors.shape[1]
+    P = sp.csr_matrix((vectors.T.ravel(), (np.repeat(np.arange(n), 2), np.arange(2 * n))),
+                      shape=(n, 2 * n))
+    return (P @ G).tocsr()
+
+
 def _curvature_blocks(proj, pressure, shear):
     """Per point ``∂(-(p n + s t))/∂x`` at fixed tractions ``p, s``:
     ``-p κ t tᵀ + s κ n tᵀ`` (``∂n/∂x = κ t tᵀ``, ``∂t/∂x = -κ n tᵀ``)."""
@@ -915,40 +933,25 @@ def _rigid_tangent(pts, proj, slipped, law, omega_n, omega_t, mu):
     ``H``, ``S``, ``Σ`` select the nodes in contact, sticking and slipping,
     ``a_q = 1 - κ_q (Δξ_q·n_q)`` comes from the rotation of ``t`` and
     ``φ(ĝ)`` is the part of the step spent in contact (:meth:`RigidContact._law`).
-
-    Every term is ``Gᵀ X G`` with ``X`` coupling the point displacements
-    (2n × 2n); the terms are summed as dense point matrices first, so that
-    one sparse product with ``G`` remains.
     """
     pressure, shear, slip, active, slip_t, phi, dphi = law
     G, w = pts.G, pts.weights
-    n_pts = w.shape[0]
-    M = pts.hats.T.toarray() * w  # (m, n): hat functions times point weights
+    M = (pts.hats.T @ sp.diags(w)).tocsr()
     inv_W = 1.0 / pts.node_weights
-    normal, tangent = proj.normal.T, proj.tangent.T  # (n, 2)
-
-    def coupled(nodal):
-        """``Mᵀ diag(nodal) M`` (n × n)."""
-        return M.T @ (nodal[:, None] * M)
-
-    def term(S, left, right):
-        """``X[(q, i), (r, j)] = left_qi S_qr right_rj``."""
-        return (left[:, :, None, None] * S[:, None, :, None]
-                * right[None, None, :, :]).reshape(2 * n_pts, 2 * n_pts)
-
-    X = term(coupled(omega_n * active * inv_W), normal, normal)
+    Bn = _directional(G, proj.normal)
+    K = omega_n * (Bn.T @ M.T @ sp.diags(active * inv_W) @ M @ Bn)
     if mu > 0:
         a = 1.0 - proj.curvature * np.einsum("ni,ni->n", slipped, proj.normal.T)
+        Bt = _directional(G, proj.tangent)
         stick = omega_t * (active & ~slip) * inv_W
-        touching = stick * slip_t * dphi
+        K = K + Bt.T @ M.T @ (sp.diags(stick * phi) @ M @ sp.diags(a) @ Bt
+                              + sp.diags(stick * slip_t * dphi) @ M @ Bn)
         if np.isfinite(mu):
-            touching = touching + mu * omega_n * np.sign(shear) * (slip & active) * inv_W
-        X += term(coupled(stick * phi), tangent, a[:, None] * tangent)
-        X += term(coupled(touching), tangent, normal)
+            sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
+            K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
     p, s = pts.hats @ pressure, pts.hats @ shear
     blocks = w[:, None, None] * _curvature_blocks(proj, p, s)
-    X.reshape(n_pts, 2, n_pts, 2)[np.arange(n_pts), :, np.arange(n_pts), :] += blocks
-    return (G.T @ sp.csr_matrix(X) @ G).tocsr()
+    return (K + G.T @ _block_diagonal(blocks) @ G).tocsr()
 
 
 def _touch_fraction(gap, previous_gap, was_active):

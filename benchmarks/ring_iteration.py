@@ -7,13 +7,13 @@ F-bar, J2 perfect plasticity, rigid platen contact.  RKPM and FEM Q1 run on
 the same mesh and quadrature.
 
 The ring is first compressed by ``--steps`` of the 100 load steps (default
-10: the points under the platen are plastic and in contact), then one
-iteration is timed part by part at the first iterate of the next step, each part
-``--repeat`` times (the fastest run is reported):
+10: the platen is in contact), then one iteration is timed part by part at
+the first iterate of the next step (almost every point on the plastic
+branch), each part ``--repeat`` times (the fastest run is reported):
 
 * *kinematics*: ``assembler.gradient(d)``, ``deformation_gradient``
   (Eq. 3.30) and ``det F``;
-* *material*: ``J2Material.update`` at ``F̄`` (log strain, return map,
+* *material*: ``J2Material.update`` at ``F`` (log strain, return map,
   consistent tangent at the model's entries of ``F``);
 * *assembly*: internal force ``assembler.linear`` and tangent
   ``assembler.local_bilinear`` + ``assembler.matrix``;
@@ -31,8 +31,8 @@ Q1 one; the whole stick ring (100 steps) in at most 15 s.  Times are CPU
 milliseconds of the process (``--clock cpu``, the default; on one core they
 equal the wall time of an idle machine and hardly grow when other processes
 share the cores), or elapsed time with ``--clock wall``.  ``--full`` also
-runs the whole stick ring for both methods (wall time, iterations, ms per
-iteration); ``--save FILE`` stores the tool force history of the full runs
+runs the whole stick ring for both methods (wall and CPU time, iterations,
+evaluations, CPU ms per evaluation); ``--save FILE`` stores the tool force history of the full runs
 and ``--compare FILE`` checks it against a stored one (relative difference).
 
 Run:  python benchmarks/ring_iteration.py            (~1 minute)

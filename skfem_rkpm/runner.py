@@ -70,7 +70,10 @@ def build(scene, method=None):
             raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
                              f"the {type(mesh).__name__} cells")
         basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
-    locking = None if disc["locking"] == "none" else disc["locking"]
+    locking = disc["locking"]
+    if locking == "auto":
+        locking = "fbar" if method == "fem" else "none"
+    locking = None if locking == "none" else locking
     problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
 
     prescribed, pressures = [], []

@@ -120,8 +120,9 @@ SCHEMA = {
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),
                        doc="fem: element"),
-        "locking": Key("str", "none", choices=("none", "fbar"),
-                       doc="volumetric locking control"),
+        "locking": Key("str", "none", choices=("none", "fbar", "auto"),
+                       doc="volumetric locking control; auto: F-bar for FEM, none for "
+                           "RKPM (its smooth, wide shape functions lock far less)"),
     },
     "material": {
         "E": Key("float", required=True, check=_positive, doc="Young's modulus"),

@@ -86,3 +86,10 @@ def test_corner_refined_ring_from_gmsh_is_homogeneous_without_friction():
     radius, force = exact_frictionless(0.1)
     assert result.gauges[-1]["inner_mid x"] == pytest.approx(radius, rel=1e-5)
     assert -result.history[-1].reactions["platen"][1] == pytest.approx(force, rel=1e-5)
+
+
+def test_auto_locking_is_fbar_for_fem_and_none_for_rkpm():
+    scene = load_scene(builtin_scenes()["ring"], COARSE)
+    assert scene["discretization"]["locking"] == "auto"
+    assert build(scene, "fem").problem.locking == "fbar"
+    assert build(scene, "rkpm").problem.locking is None

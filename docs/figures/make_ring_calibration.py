@@ -1,10 +1,10 @@
 """The ring-test calibration chart of docs/sweeps.md from a friction sweep.
 
     skfem-rkpm sweep ring --vary tools.platen.friction=0,0.05,0.1,0.15,0.2,0.3,stick \\
-        --set geometry.divisions=[9,6] --set steps.count=25 --set tools.platen.collocation=nodal \\
+        --set geometry.divisions=[9,6] --set steps.count=25 --set discretization.locking=fbar \\
         --set output.fields=false --set output.figures=false --out results/ring-sweep
     skfem-rkpm sweep ring --vary tools.platen.friction=0.12 \\
-        --set geometry.divisions=[9,6] --set steps.count=25 --set tools.platen.collocation=nodal \\
+        --set geometry.divisions=[9,6] --set steps.count=25 --set discretization.locking=fbar \\
         --set output.fields=false --set output.figures=false --out results/ring-check
     python docs/figures/make_ring_calibration.py results/ring-sweep results/ring-check
 

@@ -42,16 +42,10 @@ STYLE = {"rkpm": "-", "fem": "--"}
 
 
 def ring_run(friction, method, steps, settings, out):
-    """One run of the built-in ring scene; returns (simulation, result).
-
-    Under stick both methods use F-bar: the material held at the platen
-    flows isochorically around it, and RKPM without F-bar stops at 22 %
-    height reduction there (49 % with it)."""
-    locking = ['discretization.locking="fbar"'] if friction == "stick" else []
+    """One run of the built-in ring scene; returns (simulation, result)."""
     scene = load_scene(builtin_scenes()["ring"],
                        [f"tools.platen.friction={friction}", f"steps.count={steps}",
-                        "output.fields=false", "output.figures=false", *locking,
-                        *settings])
+                        "output.fields=false", "output.figures=false", *settings])
     sim = build(scene, method)
     return sim, run(sim, out / f"{method}-mu-{friction}", progress=False)
 

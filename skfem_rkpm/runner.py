@@ -72,7 +72,9 @@ def build(scene, method=None):
         basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
     locking = disc["locking"]
     if locking == "auto":
-        locking = "fbar" if method == "fem" else "none"
+        sticks = any(section.get("friction") == "stick"
+                     for name, section in scene.items() if name.startswith("tools."))
+        locking = "fbar" if method == "fem" or sticks else "none"
     locking = None if locking == "none" else locking
     problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
 

@@ -88,8 +88,10 @@ def test_corner_refined_ring_from_gmsh_is_homogeneous_without_friction():
     assert -result.history[-1].reactions["platen"][1] == pytest.approx(force, rel=1e-5)
 
 
-def test_auto_locking_is_fbar_for_fem_and_none_for_rkpm():
+def test_auto_locking_is_fbar_for_fem_and_for_rkpm_only_under_stick():
     scene = load_scene(builtin_scenes()["ring"], COARSE)
     assert scene["discretization"]["locking"] == "auto"
     assert build(scene, "fem").problem.locking == "fbar"
     assert build(scene, "rkpm").problem.locking is None
+    stick = load_scene(builtin_scenes()["ring"], [*COARSE, "tools.platen.friction=stick"])
+    assert build(stick, "rkpm").problem.locking == "fbar"

@@ -188,6 +188,24 @@ class _RKBase(AbstractBasis):
                 "particles per cell>")
 
 
+def _check_distinct(nodes, radius):
+    """Raise if two particles coincide (closer than 1e-9 of the smallest support)."""
+    from scipy.spatial import cKDTree
+
+    tol = 1e-9 * np.min(radius, initial=np.inf)
+    if not np.isfinite(tol):
+        return
+    pairs = cKDTree(nodes.T).query_pairs(tol, output_type="ndarray")
+    if len(pairs):
+        pairs = np.sort(pairs, axis=1)
+        i, j = pairs[np.lexsort(pairs.T[::-1])[0]]
+        where = ", ".join(f"{c:.6g}" for c in nodes[:, i])
+        raise ValueError(
+            f"particles {i} and {j} coincide at ({where}) ({len(pairs)} such pairs): "
+            "their shape functions would be identical and the stiffness matrix "
+            "singular; remove the duplicate vertices or particles")
+
+
 class RKBasis(_RKBase):
     """Reproducing kernel basis on the background cells of a scikit-fem mesh.
 
@@ -248,6 +266,7 @@ class RKBasis(_RKBase):
                 raise ValueError(f"normalized support must be positive, not {support}")
             radius = support * spacing
         self.radius = np.broadcast_to(np.asarray(radius, float), (nodes.shape[1],)).copy()
+        _check_distinct(nodes, self.radius)
         self.dilation = support
         self.order, self.kernel = order, kernel
         self.support_shape, self.intorder = support_shape, intorder

@@ -453,18 +453,28 @@ def _points_ok(x, nodes, radius, exps, window, support, rcond_min):
 
 
 def _smallest_factor(x, nodes, radius, exps, window, support, rcond_min):
-    """Smallest support growth factor (1.02 steps up to 10) that fixes ``x``."""
-    for factor in 1.02 ** np.arange(1, 118):
-        if _points_ok(x, nodes, radius * factor, exps, window, support, rcond_min):
-            return float(factor)
-    return None
+    """Smallest support growth factor (1.02 steps up to 10) that fixes ``x``.
+
+    A sample of 50 points gives a lower bound cheaply; the scan then goes on
+    from there with every point, so that the factor works for all of them.
+    """
+    factors = 1.02 ** np.arange(1, 118)
+    for points in (x[:, :50], x):
+        for k, factor in enumerate(factors):
+            if _points_ok(points, nodes, radius * factor, exps, window, support,
+                          rcond_min):
+                factors = factors[k:]
+                break
+        else:
+            return None
+    return float(factors[0])
 
 
 def _raise_singular(bad, counts, x, nodes, radius, order, window, support,
                     dilation, rcond_min, why):
     xb = x[:, bad]
     exps = monomial_exponents(x.shape[0], order)
-    factor = _smallest_factor(xb[:, :50], nodes, radius, exps, window,
+    factor = _smallest_factor(xb, nodes, radius, exps, window,
                               support, rcond_min)
     first = bad[0]
     coords = ", ".join(f"{c:.6g}" for c in x[:, first])

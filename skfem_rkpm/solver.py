@@ -50,6 +50,11 @@ class Prescribed:
     values: object = 0.0
     method: str = "nodal"
 
+    def __post_init__(self):
+        if not callable(self.values) and not np.isfinite(float(self.values)):
+            raise ValueError(f"Prescribed({self.boundary!r}, {self.component}): the "
+                             f"value must be finite, not {self.values}")
+
     @property
     def name(self):
         return f"{self.boundary}[{self.component}]"
@@ -63,7 +68,15 @@ class Prescribed:
 
     def at(self, t, x):
         if callable(self.values):
-            return np.broadcast_to(np.asarray(self.values(t, x), float), (x.shape[1],))
+            values = np.broadcast_to(np.asarray(self.values(t, x), float), (x.shape[1],))
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                where = ", ".join(f"{c:.6g}" for c in x[:, bad[0]])
+                raise ValueError(
+                    f"prescribed values of {self.name} at t = {t:.6g} are not finite "
+                    f"at {bad.size} of {len(values)} nodes; first {values[bad[0]]} at "
+                    f"X = ({where}): check the function given as values")
+            return values
         return np.full(x.shape[1], t * float(self.values))
 
 

@@ -111,8 +111,8 @@ class J2Material:
     """
 
     def __init__(self, E, nu, hardening=None):
-        if not E > 0:
-            raise ValueError(f"Young's modulus must be positive, not {E}")
+        if not (np.isfinite(E) and E > 0):
+            raise ValueError(f"Young's modulus E must be positive and finite, not {E}")
         if not -1.0 < nu < 0.5:
             raise ValueError(f"Poisson's ratio must lie in (-1, 0.5), not {nu}")
         if hardening is not None and not np.all(hardening.stress(0.0) > 0):

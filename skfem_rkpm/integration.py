@@ -10,11 +10,16 @@ patch test passes only approximately with the paper's scheme.  VCI (Chen,
 Hillman & Rüter 2013) adds a small correction to the *test* function
 gradients,
 
-    ∇̃Ψ_I(x) = ∇Ψ_I(x) + φ_I(x) Σ_β ξ_Iβ p_β(x),
+    ∇̃Ψ_I(x) = ∇Ψ_I(x) + φ_I(x) (a_I(x) - Σ_J S_J(x) a_J(x)),
+    a_I(x) = Σ_β ξ_Iβ p_β(x),   S_J = φ_J / Σ_K φ_K,
 
 with the kernel φ_I as weight and ``p_β`` the monomials of degree below the
-basis order ``n`` (shifted to the particle and scaled by its support), and
-fixes the coefficients per particle so that, with the quadrature in use,
+basis order ``n`` (shifted to the particle and scaled by its support).  The
+Shepard-weighted mean subtracted from ``a_I`` keeps the derivative of the
+partition of unity, Σ_I ∇̃Ψ_I = 0 at every point, so internal forces are
+self-equilibrated for any stress.  The coefficients of all particles are
+fixed together (one sparse symmetric solve) so that, with the quadrature in
+use,
 
     ∫̂_Ω ∇̃Ψ_I p_α dΩ + ∫̂_Ω Ψ_I ∇p_α dΩ = ∫̂_Γ Ψ_I p_α n dΓ    for |α| ≤ n - 1.
 
@@ -24,6 +29,9 @@ solutions of degree ``n`` to round-off: the patch test passes on any mesh.
 """
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import splu
 from skfem import CellBasis, FacetBasis
 
 from .kernels import get_kernel
@@ -154,6 +162,58 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
             f"({bad.size} particles affected); increase the support or the "
             "quadrature order"
         )
-    xi = np.linalg.solve(A, rhs.transpose(0, 2, 1))  # (nnodes, m, dim)
-    correction = np.einsum("na,nak->kn", p, xi[cols])
-    return table.grads + phi[None, :] * correction
+    xi = _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale,
+                                exps)  # (nnodes, m, dim)
+    a = np.einsum("na,nak->kn", p, xi[cols])  # a_I(x_q) at the pairs
+    nq = table.npoints
+    shepard = phi / np.bincount(rows, phi, minlength=nq)[rows]
+    mean = np.stack([np.bincount(rows, shepard * a[k], minlength=nq)
+                     for k in range(dim)])  # ā(x_q) = Σ_J S_J a_J
+    return table.grads + phi[None, :] * (a - mean[:, rows])
+
+
+def _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale, exps):
+    """Coefficients ξ_I of the balanced correction (one sparse solve).
+
+    The correction ``c_I = φ_I (a_I - Σ_J S_J a_J)``, ``a_I = ξ_I · p_I`` and
+    ``S_J = φ_J / Σ_K φ_K`` (Shepard functions), sums to zero at every
+    point.  The constraints of all particles become one symmetric positive
+    semidefinite system ``M ξ = r``,
+
+        M = blockdiag(∫̂ φ_I p_I p_Iᵀ) - Hᵀ diag(w_q / Σ_K φ_K(x_q)) H,
+        H[q, (J, β)] = φ_J(x_q) p_Jβ(x_q),
+
+    whose null space holds the ``ξ`` with ``a_I`` one polynomial of degree
+    ``n - 1`` on each connected body (they give ``c_I = 0``).  The right-hand
+    side is orthogonal to it: summing the constraints over ``I`` gives the
+    divergence theorem for that polynomial, exact for the quadrature.  So
+    ``ξ`` of one particle per body is set to zero and its constraints,
+    implied by the others, are dropped: the rest of ``M`` is positive
+    definite.
+    """
+    rows, cols = table.rows, table.indices
+    nnodes, m, _ = A.shape
+    dim = rhs.shape[1]
+    nq = table.npoints
+    n = nnodes * m
+    unknown = (cols[:, None] * m + np.arange(m)[None, :]).ravel()
+    H = sp.csr_matrix(((phi[:, None] * p).ravel(), (np.repeat(rows, m), unknown)),
+                      shape=(nq, n))
+    Phi = np.bincount(rows, phi, minlength=nq)
+    block = np.arange(n).reshape(nnodes, m)
+    D = sp.csr_matrix((A.ravel(), (np.repeat(block, m, axis=1).ravel(),
+                                   np.tile(block, (1, m)).ravel())), shape=(n, n))
+    M = D - H.T @ sp.diags(weights / Phi) @ H
+
+    incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(nq, nnodes))
+    _, body = connected_components(incidence.T @ incidence, directed=False)
+    _, pinned = np.unique(body, return_index=True)  # first particle of each body
+    free = np.ones(n, dtype=bool)
+    free[block[pinned].ravel()] = False
+    b = rhs.transpose(0, 2, 1).reshape(n, dim)
+    Mf = M[free][:, free].tocsc()
+    lu = splu(Mf, permc_spec="MMD_AT_PLUS_A")
+    x = np.zeros((n, dim))
+    x[free] = lu.solve(b[free])
+    x[free] += lu.solve(b[free] - Mf @ x[free])  # one step of refinement
+    return x.reshape(nnodes, m, dim)

@@ -216,5 +216,10 @@ def test_upsetting_keeps_the_volume_and_the_axis(upsetting_runs, method):
 
 
 def test_upsetting_rkpm_and_fem_agree(upsetting_runs):
-    rk, fem = (-tool_force(upsetting_runs[m][1], "punch") for m in ("rkpm", "fem"))
-    np.testing.assert_allclose(rk, fem, rtol=0.01)  # measured 0.3 %
+    # compare at the load levels both runs reached (cut-backs differ)
+    rk, fem = ({r.t: -r.reactions["punch"][1] for r in upsetting_runs[m][1].history}
+               for m in ("rkpm", "fem"))
+    common = sorted(set(rk) & set(fem))
+    assert len(common) >= 4
+    np.testing.assert_allclose([rk[t] for t in common], [fem[t] for t in common],
+                               rtol=0.01)  # measured 0.3 %

@@ -1,0 +1,42 @@
+"""VCI keeps the partition-of-unity derivative: Σ_I ∇̃Ψ_I = 0 at every
+quadrature point, so internal forces are self-equilibrated for any stress."""
+
+import numpy as np
+import pytest
+
+from skfem_rkpm import Assembler, RKBasis
+from skfem_rkpm.meshes import rectangle
+
+
+def _basis(kind, order):
+    m = rectangle(2.0, 1.0, 8, 5, kind=kind, perturb=0.2 if kind == "quad" else 0.15,
+                  seed=3)
+    return RKBasis(m, vector=True, support=2.0 if order == 1 else 3.0, order=order,
+                   intorder=2 if order == 1 else 4, integration="vci")
+
+
+@pytest.mark.parametrize("kind", ["quad", "tri"])
+@pytest.mark.parametrize("order", [1, 2])
+def test_test_gradients_sum_to_zero_pointwise(kind, order):
+    b = _basis(kind, order)
+    dim, nq, rows = b.nodes.shape[0], b.table.npoints, b.table.rows
+    sums = np.stack([np.bincount(rows, b.test_grads[k], minlength=nq)
+                     for k in range(dim)])
+    scale = np.abs(b.test_grads).max()
+    # the correction itself is far from round-off ...
+    assert np.abs(b.test_grads - b.table.grads).max() > 1e-4 * scale
+    # ... but sums to zero at every point
+    assert np.abs(sums).max() < 1e-12 * scale
+
+
+@pytest.mark.parametrize("kind", ["quad", "tri"])
+@pytest.mark.parametrize("order", [1, 2])
+def test_internal_force_of_nonuniform_stress_is_balanced(kind, order):
+    b = _basis(kind, order)
+    x = np.asarray(b.global_coordinates())
+    # a quadratic, non-symmetric stress field (c, l, nelems, nqp)
+    P = np.array([[1.0 + 3 * x[0] ** 2 - x[1], 0.5 * x[0] * x[1]],
+                  [2.0 - x[0] + x[1] ** 2, -1.0 + 4 * x[0] * x[1]]])
+    f = Assembler(b).linear(P).reshape(-1, 2)
+    magnitude = np.abs(f).sum(0)
+    np.testing.assert_array_less(np.abs(f.sum(0)), 1e-12 * magnitude)

@@ -496,7 +496,7 @@ def test_newton_converges_with_friction(kind, friction):
                           steps=10, contributions=[platen], tol=1e-8)
     assert result.completed
     iterations = [r.iterations for r in result.history]
-    # measured: 3-17 iterations per step (mean 5.5-6.8, tolerance 1e-8), no cut-backs; the
+    # measured: 3-17 iterations per step (mean 5.7-6.8, tolerance 1e-8), no cut-backs; the
     # most when the side folds over onto the platen
     assert len(iterations) == 10 and max(iterations) <= 20 and np.mean(iterations) <= 12
     fx, fy = result.history[-1].reactions["platen"]

@@ -1,4 +1,6 @@
-"""Closed-form solutions of plane linear elasticity used as references.
+"""Closed-form solutions used as references: plane linear elasticity
+(Timoshenko's cantilever, Kirsch's plate with a hole) and the homogeneous
+uniaxial compression of the finite-strain J2 model.
 
 All functions take coordinates ``x`` of shape ``(2, ...)`` (``x[0]`` and
 ``x[1]`` may have any common shape, e.g. the ``(nelems, nqp)`` quadrature
@@ -17,9 +19,14 @@ S. P. Timoshenko and J. N. Goodier, *Theory of Elasticity*, 3rd ed.,
 McGraw-Hill, 1970, sections 21 (cantilever) and 35 (circular hole).
 """
 
+from collections import namedtuple
+
 import numpy as np
+from scipy.optimize import brentq
 
 __all__ = [
+    "UniaxialState",
+    "uniaxial_compression",
     "effective_constants",
     "timoshenko_displacement",
     "timoshenko_stress",
@@ -243,3 +250,33 @@ def kirsch_displacement(x, a, T, E, nu, plane="stress"):
         - 2.0 * (a / r) ** 3 * s3
     )
     return np.stack((ux, uy))
+
+
+UniaxialState = namedtuple("UniaxialState", "cauchy nominal alpha lateral_stretch")
+
+
+def uniaxial_compression(reduction, E, nu, hardening):
+    """Homogeneous uniaxial compression by ``reduction`` (0 ≤ δ < 1) of the
+    log-strain J2 model of :class:`skfem_rkpm.mechanics.materials.J2Material`.
+
+    Axial log strain ε = ln(1 - δ).  Elastic: τ = E ε.  Plastic: τ = -σ_y(ε̄ᵖ)
+    with ε̄ᵖ + σ_y(ε̄ᵖ)/E = -ε.  Lateral log strain -ν τ/E + ε̄ᵖ/2 (isochoric
+    plastic flow), so the volume change is J = exp((1 - 2ν) τ / E).
+
+    Returns
+    -------
+    UniaxialState
+        ``cauchy``: axial Cauchy stress τ/J; ``nominal``: axial force per unit
+        initial area, τ/(1 - δ); ``alpha``: ε̄ᵖ; ``lateral_stretch``: the
+        stretch of every lateral fibre (radius of a cylinder or ring).
+    """
+    eps = np.log(1.0 - reduction)
+    if E * abs(eps) <= hardening.stress(0.0):
+        tau, alpha = E * eps, 0.0
+    else:
+        alpha = brentq(lambda a: a + hardening.stress(a) / E + eps, 0.0, 5.0, xtol=1e-15)
+        tau = -hardening.stress(alpha)
+    lateral = -nu * tau / E + alpha / 2
+    return UniaxialState(tau / np.exp(eps + 2 * lateral), tau / (1.0 - reduction), alpha,
+                         np.exp(lateral))
+

@@ -5,10 +5,10 @@ convergence with friction, and node-to-segment contact of two bodies."""
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
 from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad
 
 from skfem_rkpm import RKBasis
+from skfem_rkpm.exact import uniaxial_compression
 from skfem_rkpm.mechanics.contact import (Arc, NodeToSegmentContact, Platen, Polyline,
                                           RigidContact, coulomb, from_scene, polyline,
                                           slave_points)
@@ -283,16 +283,10 @@ def test_contact_tangent_is_the_derivative_of_the_contact_force(tool, friction, 
 
 
 def uniaxial_exact(delta, law):
-    """Uniaxial compression of the log-strain J2 model (tests/test_plasticity.py):
-    Cauchy stress, force on a unit-radius cylinder and ε̄ᵖ."""
-    eps = np.log(1.0 - delta)
-    if E * abs(eps) <= law.stress(0.0):
-        tau, alpha = E * eps, 0.0
-    else:
-        alpha = brentq(lambda a: a + law.stress(a) / E + eps, 0.0, 5.0, xtol=1e-15)
-        tau = -law.stress(alpha)
-    lateral = -NU * tau / E + alpha / 2
-    return tau / np.exp(eps + 2 * lateral), tau * np.pi / (1.0 - delta), alpha
+    """Axial Cauchy stress, force on a unit-radius cylinder and ε̄ᵖ of the
+    homogeneous compression (:func:`skfem_rkpm.exact.uniaxial_compression`)."""
+    state = uniaxial_compression(delta, E, NU, law)
+    return state.cauchy, np.pi * state.nominal, state.alpha
 
 
 def plane_strain_elastic_exact(delta):

@@ -5,10 +5,10 @@ bases against the exact true stress-strain curves."""
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 from skfem import Basis, ElementQuad1, ElementVector
 
 from skfem_rkpm import RKBasis
+from skfem_rkpm.exact import uniaxial_compression
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.mechanics.materials import J2Material, MaterialState, linear, perfect, swift
 from skfem_rkpm.mechanics.problem import SolidProblem
@@ -102,20 +102,10 @@ def test_simple_shear_perfect_plasticity_stays_on_the_yield_surface():
 
 
 def uniaxial_exact(delta, law):
-    """Uniaxial compression of the log-strain J2 model, closed form.
-
-    ε = ln(1 - δ); elastic: τ = Eε; plastic: τ = -σ_y(ε̄ᵖ) with
-    ε̄ᵖ + σ_y(ε̄ᵖ)/E = -ε; lateral log strain -ν τ/E + ε̄ᵖ/2.
-    Returns the Cauchy stress and the axial force on a unit-radius cylinder.
-    """
-    eps = np.log(1.0 - delta)
-    if E * abs(eps) <= law.stress(0.0):
-        tau, alpha = E * eps, 0.0
-    else:
-        alpha = brentq(lambda a: a + law.stress(a) / E + eps, 0.0, 5.0, xtol=1e-15)
-        tau = -law.stress(alpha)
-    lateral = -NU * tau / E + alpha / 2
-    return tau / np.exp(eps + 2 * lateral), tau * np.pi / (1.0 - delta), alpha
+    """Axial Cauchy stress, force on a unit-radius cylinder and ε̄ᵖ of the
+    homogeneous compression (:func:`skfem_rkpm.exact.uniaxial_compression`)."""
+    state = uniaxial_compression(delta, E, NU, law)
+    return state.cauchy, np.pi * state.nominal, state.alpha
 
 
 def axisymmetric_basis(kind, mesh):

@@ -9,6 +9,8 @@ radius by 1/sqrt(1 - r) at height reduction r, and the platen force is
 import numpy as np
 import pytest
 
+from skfem_rkpm.exact import uniaxial_compression
+from skfem_rkpm.mechanics.materials import perfect
 from skfem_rkpm.runner import build, run
 from skfem_rkpm.scene import builtin_scenes, load_scene
 
@@ -27,17 +29,10 @@ def ring(method, friction, *settings):
 
 def exact_frictionless(reduction):
     """Inner radius and platen force (full ring) of the homogeneous
-    compression at height reduction ``reduction``.
-
-    Kirchhoff stress τ_zz = -σ_y (the J2 yield condition of the log-strain
-    model), elastic volume change J = exp((1 - 2ν) τ_zz / E), plastic flow
-    isochoric: λ_r² λ_z = J with λ_z = 1 - reduction; the Cauchy stress
-    τ/J acts on the current annulus.
-    """
-    J = np.exp(-(1 - 2 * NU) * SIGMA_Y / E)
-    stretch_r = np.sqrt(J / (1.0 - reduction))
-    area = np.pi * (60.0**2 - 30.0**2) * stretch_r**2
-    return 30.0 * stretch_r, SIGMA_Y / J * area
+    compression at height reduction ``reduction``: every radius scales with
+    the lateral stretch, the force is the nominal stress on the annulus."""
+    state = uniaxial_compression(reduction, E, NU, perfect(SIGMA_Y))
+    return 30.0 * state.lateral_stretch, -state.nominal * np.pi * (60.0**2 - 30.0**2)
 
 
 @pytest.mark.parametrize("method, settings, rtol", [

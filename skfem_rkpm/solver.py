@@ -208,11 +208,12 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             for cut in range(max_cutbacks + 1):
                 t = t_done + dt
                 clock = time.perf_counter()
+                g_t, f_t = g(t), f_ext(t)
                 starts = ([d + dt * rate, d] if extrapolate and rate is not None else [d])
                 for guess in starts:
                     try:
                         d_new, ev, lam, its, res, en = _newton(
-                            problem, guess, t, C, g(t), f_ext(t), reactions_fit, tol,
+                            problem, guess, t, C, g_t, f_t, reactions_fit, tol,
                             max_iterations, log, contributions, linear_solver)
                     except (NonConvergence, InvertedElementError, RuntimeError,
                             np.linalg.LinAlgError) as err:
@@ -221,7 +222,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                         continue
                     break
                 else:
-                    log(f"step {step_index + 1}: cutting the step")
+                    if cut < max_cutbacks:
+                        log(f"step {step_index + 1}: cutting the step")
                     dt /= 2.0
                     continue
                 break

@@ -249,6 +249,16 @@ TOOLS = {
 }
 
 
+def assert_tangent_matches_differences(contact, d, t, K, h=1e-7):
+    """``K`` equals the central differences of the contact force, column by
+    column, to 1e-7 of its largest entry."""
+    fd = np.column_stack([(contact.evaluate(d + h * e, t)[0]
+                           - contact.evaluate(d - h * e, t)[0]) / (2 * h)
+                          for e in np.eye(len(d))])
+    K = K.toarray()
+    assert np.abs(K - fd).max() < 1e-7 * np.abs(K).max()
+
+
 @pytest.mark.parametrize("tool", list(TOOLS))
 @pytest.mark.parametrize("friction", [0.0, 0.3, "stick"])
 @pytest.mark.parametrize("kind, collocation", [("fem", "nodal"), ("rk", "nodal"),
@@ -269,12 +279,7 @@ def test_contact_tangent_is_the_derivative_of_the_contact_force(tool, friction, 
     _, K = contact.evaluate(d, 0.6)
     state = contact.trial
     assert state.active.any()
-    h = 1e-7
-    fd = np.column_stack([(contact.evaluate(d + h * e, 0.6)[0]
-                           - contact.evaluate(d - h * e, 0.6)[0]) / (2 * h)
-                          for e in np.eye(problem.N)])
-    K = K.toarray()
-    assert np.abs(K - fd).max() < 1e-7 * np.abs(K).max()
+    assert_tangent_matches_differences(contact, d, 0.6, K)
 
 
 # ---------------------------------------------------------------------------
@@ -638,12 +643,7 @@ def test_node_to_segment_tangent_is_the_derivative_of_the_force(kind):
          else nodal)
     _, K = contact.evaluate(d, 0.0)
     assert contact.trial.active.sum() >= 2
-    h = 1e-7
-    fd = np.column_stack([(contact.evaluate(d + h * e, 0)[0]
-                           - contact.evaluate(d - h * e, 0)[0]) / (2 * h)
-                          for e in np.eye(problem.N)])
-    K = K.toarray()
-    assert np.abs(K - fd).max() < 1e-7 * np.abs(K).max()
+    assert_tangent_matches_differences(contact, d, 0, K)
 
 
 def test_node_to_segment_input_errors():

@@ -201,9 +201,8 @@ def graded_rectangle(lx, ly, nx, ny, ratio, kind="quad"):
         raise ValueError(f"ratio must be >= 1, got {ratio}")
     if ratio != 1.0 and min(nx, ny) < 2:
         raise ValueError("grading needs at least 2 cells in each direction")
-    x = _geometric_nodes(lx, nx, ratio)
-    y = _geometric_nodes(ly, ny, ratio)
-    return _with_box_sides(_tensor_mesh(x, y, kind), 0.0, lx, 0.0, ly)
+    return piecewise_rectangle(_geometric_nodes(lx, nx, ratio),
+                               _geometric_nodes(ly, ny, ratio), kind)
 
 
 def piecewise_rectangle(x, y, kind="quad"):

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem.element import ElementVector
 
-from .linsolve import DENSE_LIMIT, make_solver, solve_saddle_point  # noqa: F401
+from .linsolve import make_solver, solve_saddle_point
 
 __all__ = ["transformation", "solve", "solve_constrained", "linear_solve",
            "Constraint", "nodal_constraint", "weak_constraint"]

@@ -68,6 +68,8 @@ the master surface is ``n = e_3 × t`` (Eq. 4.7), pointing toward the body.
 
 from dataclasses import dataclass
 
+from functools import cached_property
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -583,6 +585,11 @@ class SlavePoints:
     def m(self):
         return self.node_weights.shape[0]
 
+    @cached_property
+    def weighted_hats(self):
+        """``M = Nᵀ diag(w)`` (m × n): nodal integrals of point values."""
+        return (self.hats.T @ sp.diags(self.weights)).tocsr()
+
     def displacements(self, d):
         """Displacements (2, n) of the points for coefficients ``d``."""
         return (self.G @ d).reshape(-1, 2).T
@@ -936,7 +943,7 @@ def _rigid_tangent(pts, proj, slipped, law, omega_n, omega_t, mu):
     """
     pressure, shear, slip, active, slip_t, phi, dphi = law
     G, w = pts.G, pts.weights
-    M = (pts.hats.T @ sp.diags(w)).tocsr()
+    M = pts.weighted_hats
     inv_W = 1.0 / pts.node_weights
     Bn = _directional(G, proj.normal)
     K = omega_n * (Bn.T @ M.T @ sp.diags(active * inv_W) @ M @ Bn)

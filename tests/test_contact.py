@@ -10,7 +10,7 @@ from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad
 from skfem_rkpm import RKBasis
 from skfem_rkpm.exact import uniaxial_compression
 from skfem_rkpm.mechanics.contact import (Arc, NodeToSegmentContact, Platen, Polyline,
-                                          RigidContact, coulomb, from_scene, polyline,
+                                          RigidContact, STICK_FRICTION, coulomb, from_scene, polyline,
                                           slave_points)
 from skfem_rkpm.mechanics.materials import J2Material, linear
 from skfem_rkpm.mechanics.problem import SolidProblem
@@ -229,9 +229,6 @@ def test_coulomb_return_map():
     shear, slip = coulomb(pressure, trial, 0.3)
     np.testing.assert_allclose(shear, [2.0, -3.0, 3.0, 0.0])
     np.testing.assert_array_equal(slip, [False, True, True, True])
-    shear, slip = coulomb(pressure, trial, np.inf)  # perfect stick
-    np.testing.assert_allclose(shear, trial)
-    assert not slip.any()
     shear, _ = coulomb(pressure, trial, 0.0)  # frictionless
     np.testing.assert_allclose(shear, 0.0)
 
@@ -543,7 +540,7 @@ def test_from_scene_builds_the_tool_contact():
                "motion": [0.0, -0.1], "friction": "stick", "slaves": ["top"],
                "penalty": 1e6, "collocation": "quadrature"}
     contact = from_scene("die", section, problem.basis, problem)
-    assert contact.name == "die" and contact.mu == np.inf
+    assert contact.name == "die" and contact.mu == STICK_FRICTION
     assert contact.omega_n == 1e6 and contact.collocation == "quadrature"
     arc = from_scene("punch", {"kind": "arc", "center": [0.5, 2.0], "radius": 1.0,
                                "angles": [0.0, -180.0]}, problem.basis, problem)

@@ -53,7 +53,7 @@ or shape function values at boundary Gauss points) so that
 
 A node that comes into contact during a step counts its slip from the moment
 it touches (the gap interpolated linearly over the step), so that its
-tangential traction starts from zero, also for perfect stick.
+tangential traction starts from zero, also when it sticks.
 
 Rigid tools (:class:`Platen`, :class:`Polyline`, :class:`Arc`) move with the
 load factor; :class:`RigidContact` is their contribution to the Newton
@@ -77,7 +77,7 @@ from ..constraints import transformation
 
 __all__ = ["DEFAULT_PENALTY_FACTOR", "DEFAULT_TANGENTIAL_FACTOR", "Projection", "Tool",
            "Platen", "Polyline", "polyline", "Arc", "SlavePoints", "slave_points",
-           "default_penalty", "friction_coefficient", "coulomb", "ContactState",
+           "default_penalty", "STICK_FRICTION", "friction_coefficient", "coulomb", "ContactState",
            "RigidContact", "NodeToSegmentContact", "from_scene"]
 
 #: ω_n = DEFAULT_PENALTY_FACTOR · E / h_c per unit area of the contact
@@ -822,11 +822,31 @@ def default_penalty(E, spacing, factor=DEFAULT_PENALTY_FACTOR):
     return factor * E / spacing
 
 
+#: the Coulomb coefficient that models ``friction = "stick"``
+STICK_FRICTION = 10.0
+
+
 def friction_coefficient(friction):
-    """``μ`` of ``friction``: a number ``≥ 0`` or ``"stick"`` (``μ = ∞``)."""
+    """``μ`` of ``friction``: a number ``≥ 0``, or ``"stick"``.
+
+    Sticking means no slip wherever the tool presses, the limit ``μ → ∞``
+    of Eq. (4.6).  The limit itself is discontinuous where a node leaves
+    the tool: its shear drops from the sticking value to zero while its
+    pressure is already zero.  At a corner that folds onto the tool the
+    penalty problem then has no solution (the node is pushed back in by
+    the shear it loses when it separates) and Newton's method cycles
+    between the two states.  ``"stick"`` is therefore the Coulomb law with
+    ``μ = STICK_FRICTION`` (10): the shear a node can hold vanishes with
+    its pressure.  Measured on the paper's stick ring (100 steps to 50 %
+    height reduction): 99 % of the pressed nodes carry ``|t_t| ≤ 1.1 t_n``;
+    at most one node slips in any step, at the edge of the contact, with a
+    pressure below 0.6 % (RKPM) / 4.8 % (FEM Q1) of the largest; the inner
+    radius at mid-height differs by 3e-5 (relative) between μ = 10, 100 and
+    1000, and both runs reach 50 % (the limit law stops them near 49 %).
+    """
     if isinstance(friction, str):
         if friction == "stick":
-            return np.inf
+            return STICK_FRICTION
         raise ValueError(f'friction must be a number >= 0 or "stick", not {friction!r}')
     mu = float(friction)
     if not (np.isfinite(mu) and mu >= 0):
@@ -844,7 +864,7 @@ def coulomb(pressure, trial, mu):
     trial : ndarray
         Trial tangential traction ``t_t,n - ω_t Δg_t``.
     mu : float
-        Friction coefficient (``np.inf``: perfect stick; 0: frictionless).
+        Friction coefficient (0: frictionless).
 
     Returns
     -------
@@ -855,8 +875,6 @@ def coulomb(pressure, trial, mu):
     """
     if mu == 0.0:
         return np.zeros_like(trial), pressure > 0
-    if not np.isfinite(mu):
-        return trial, np.zeros(trial.shape, bool)
     slip = np.abs(trial) > mu * pressure
     return np.where(slip, mu * pressure * np.sign(trial), trial), slip
 
@@ -953,9 +971,8 @@ def _rigid_tangent(pts, proj, slipped, law, omega_n, omega_t, mu):
         stick = omega_t * (active & ~slip) * inv_W
         K = K + Bt.T @ M.T @ (sp.diags(stick * phi) @ M @ sp.diags(a) @ Bt
                               + sp.diags(stick * slip_t * dphi) @ M @ Bn)
-        if np.isfinite(mu):
-            sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
-            K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
+        sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
+        K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
     p, s = pts.hats @ pressure, pts.hats @ shear
     blocks = w[:, None, None] * _curvature_blocks(proj, p, s)
     return (K + G.T @ _block_diagonal(blocks) @ G).tocsr()
@@ -1000,7 +1017,7 @@ class RigidContact:
     slaves : str, sequence of str, facet indices, or None
         Boundaries whose points may touch the tool (default: all).
     friction : float or "stick"
-        Coulomb coefficient ``μ`` (0: frictionless) or perfect stick.
+        Coulomb coefficient ``μ`` (0: frictionless) or ``"stick"`` (:func:`friction_coefficient`).
     collocation : {"nodal", "quadrature", "gauss"}
         See :func:`slave_points`.
     penalty : float, optional

@@ -51,6 +51,37 @@ def _check_kind(kind):
         raise ValueError(f"kind must be 'tri' or 'quad', got {kind!r}")
 
 
+def _number(value, name):
+    """``value`` as a finite float; a ValueError naming ``name`` otherwise."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = None
+    if x is None or isinstance(value, (bool, np.bool_)) or not np.isfinite(x):
+        raise ValueError(f"{name} must be a finite number, not {value!r}")
+    return x
+
+
+def _positive(value, name):
+    x = _number(value, name)
+    if not x > 0:
+        raise ValueError(f"{name} must be positive, not {value!r}")
+    return x
+
+
+def _cells(value, name):
+    """A number of cells: an integer >= 1."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+            or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, not {value!r}")
+    return int(value)
+
+
+def _box(lx, ly, nx, ny):
+    """Validated side lengths and cell counts of a rectangle."""
+    return (_positive(lx, "lx"), _positive(ly, "ly"), _cells(nx, "nx"), _cells(ny, "ny"))
+
+
 def _signed_areas(p, t):
     """Signed areas of triangles or (shoelace) quadrilaterals."""
     x, y = p[0, t], p[1, t]
@@ -134,11 +165,12 @@ def rectangle(lx, ly, nx, ny, kind="quad", origin=(0.0, 0.0), perturb=0.0, seed=
     ValueError
         If the arguments are invalid or the perturbation inverts a cell.
     """
-    if lx <= 0 or ly <= 0 or nx < 1 or ny < 1:
-        raise ValueError("lx, ly must be positive and nx, ny at least 1")
-    if perturb < 0:
+    lx, ly, nx, ny = _box(lx, ly, nx, ny)
+    if not _number(perturb, "perturb") >= 0:
         raise ValueError(f"perturb must be non-negative, got {perturb}")
-    x0, y0 = float(origin[0]), float(origin[1])
+    if np.shape(origin) != (2,):
+        raise ValueError(f"origin must be two numbers (x, y), not {origin!r}")
+    x0, y0 = _number(origin[0], "origin x"), _number(origin[1], "origin y")
     x = x0 + np.linspace(0.0, lx, nx + 1)
     y = y0 + np.linspace(0.0, ly, ny + 1)
     mesh = _tensor_mesh(x, y, kind)
@@ -195,9 +227,8 @@ def graded_rectangle(lx, ly, nx, ny, ratio, kind="quad"):
     skfem.MeshQuad1 or skfem.MeshTri1
         Mesh with boundaries ``"left"``, ``"right"``, ``"bottom"``, ``"top"``.
     """
-    if lx <= 0 or ly <= 0 or nx < 1 or ny < 1:
-        raise ValueError("lx, ly must be positive and nx, ny at least 1")
-    if ratio < 1.0:
+    lx, ly, nx, ny = _box(lx, ly, nx, ny)
+    if not _number(ratio, "ratio") >= 1.0:
         raise ValueError(f"ratio must be >= 1, got {ratio}")
     if ratio != 1.0 and min(nx, ny) < 2:
         raise ValueError("grading needs at least 2 cells in each direction")
@@ -221,11 +252,19 @@ def piecewise_rectangle(x, y, kind="quad"):
     skfem.MeshQuad1 or skfem.MeshTri1
         Mesh with boundaries ``"left"``, ``"right"``, ``"bottom"``, ``"top"``.
     """
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    coords = []
     for name, c in (("x", x), ("y", y)):
+        try:
+            c = np.asarray(c, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} coordinates must be numbers, not {c!r}") from None
         if c.ndim != 1 or len(c) < 2 or not np.all(np.diff(c) > 0):
             raise ValueError(f"{name} coordinates must be at least two strictly "
                              "increasing values")
+        if not np.all(np.isfinite(c)):
+            raise ValueError(f"{name} coordinates must be finite, not {c.tolist()}")
+        coords.append(c)
+    x, y = coords
     return _with_box_sides(_tensor_mesh(x, y, kind), x[0], x[-1], y[0], y[-1])
 
 
@@ -344,8 +383,9 @@ def gmsh_rectangle(lx, ly, h, kind="tri", h_corner=None):
         and subdomain ``"domain"``.
     """
     _check_kind(kind)
-    if lx <= 0 or ly <= 0 or h <= 0 or (h_corner is not None and h_corner <= 0):
-        raise ValueError("lx, ly, h and h_corner must be positive")
+    lx, ly, h = _positive(lx, "lx"), _positive(ly, "ly"), _positive(h, "h")
+    if h_corner is not None:
+        h_corner = _positive(h_corner, "h_corner")
     with _gmsh_model("rectangle"):
         geo = gmsh.model.geo
         corners = [(0.0, 0.0), (lx, 0.0), (lx, ly), (0.0, ly)]
@@ -399,10 +439,12 @@ def gmsh_plate_with_hole(radius, length, h, kind="tri", h_hole=None):
         (``y = length``) and subdomain ``"domain"``.
     """
     _check_kind(kind)
-    if not 0 < radius < length:
-        raise ValueError("radius must satisfy 0 < radius < length")
-    if h <= 0 or (h_hole is not None and h_hole <= 0):
-        raise ValueError("h and h_hole must be positive")
+    radius, length = _positive(radius, "radius"), _positive(length, "length")
+    if not radius < length:
+        raise ValueError(f"radius must satisfy 0 < radius < length, not {radius} >= {length}")
+    h = _positive(h, "h")
+    if h_hole is not None:
+        h_hole = _positive(h_hole, "h_hole")
     h_hole = h if h_hole is None else h_hole
     with _gmsh_model("plate_with_hole"):
         geo = gmsh.model.geo
@@ -557,7 +599,8 @@ def load(path):
     """
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"mesh file '{path}' does not exist")
+        what = "is not a file" if path.exists() else "does not exist"
+        raise ValueError(f"mesh file '{path}' {what}")
     with _gmsh_model("load"):
         try:
             gmsh.merge(str(path))

@@ -22,7 +22,7 @@ from skfem.element import DiscreteField
 
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from .meshes import local_spacing
-from .shape import ShapeTable, rk_shape_functions
+from .shape import ShapeTable, coordinates, rk_shape_functions
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
@@ -189,10 +189,12 @@ class _RKBase(AbstractBasis):
 
 
 def _check_distinct(nodes, radius):
-    """Raise if two particles coincide (closer than 1e-9 of the smallest support)."""
+    """Raise if two particles coincide (closer than 1e-9 of the smallest
+    support, or of the extent of the particles if that is smaller)."""
     from scipy.spatial import cKDTree
 
-    tol = 1e-9 * np.min(radius, initial=np.inf)
+    extent = np.ptp(nodes, axis=1).max() if nodes.shape[1] > 1 else 0.0
+    tol = 1e-9 * min(np.min(radius, initial=np.inf), extent if extent > 0 else np.inf)
     if not np.isfinite(tol):
         return
     pairs = cKDTree(nodes.T).query_pairs(tol, output_type="ndarray")
@@ -250,22 +252,45 @@ class RKBasis(_RKBase):
         if integration not in INTEGRATION_SCHEMES:
             raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
                              f"not {integration!r}")
-        if order not in (0, 1, 2):
+        if isinstance(order, (bool, np.bool_)) or order not in (0, 1, 2):
             raise ValueError(f"basis order must be 0, 1 or 2, not {order!r}")
+        if isinstance(intorder, (bool, np.bool_)) or not isinstance(
+                intorder, (int, np.integer)) or intorder < 1:
+            raise ValueError(f"intorder (the Gauss rule degree) must be an integer >= 1, "
+                             f"not {intorder!r}")
         if nodes is None:
+            coordinates(mesh.p, "mesh vertex")
             nodes = mesh.p
             spacing = local_spacing(mesh)
         else:
-            nodes = np.atleast_2d(np.asarray(nodes, dtype=float))
+            nodes = coordinates(nodes, "particle")
             spacing = None
+        if nodes.shape[1] == 0:
+            raise ValueError("there are no particles; give at least one")
+        from_spacing = radius is None
         if radius is None:
             if spacing is None:
                 raise ValueError("with custom nodes give the support radii "
                                  "explicitly: RKBasis(..., radius=...)")
-            if not support > 0:
-                raise ValueError(f"normalized support must be positive, not {support}")
+            if isinstance(support, (bool, np.bool_)) or not isinstance(
+                    support, (int, float, np.integer, np.floating)) or not (
+                    np.isfinite(support) and support > 0):
+                raise ValueError("normalized support must be positive and finite, "
+                                 f"not {support!r}")
             radius = support * spacing
-        self.radius = np.broadcast_to(np.asarray(radius, float), (nodes.shape[1],)).copy()
+        try:
+            self.radius = np.broadcast_to(np.asarray(radius, float),
+                                          (nodes.shape[1],)).copy()
+        except (TypeError, ValueError):
+            raise ValueError(f"radius must be one number or one per particle "
+                             f"({nodes.shape[1]}), not {radius!r}") from None
+        bad = np.flatnonzero(~(np.isfinite(self.radius) & (self.radius > 0)))
+        if bad.size:
+            where = ", ".join(f"{c:.6g}" for c in nodes[:, bad[0]])
+            raise ValueError(f"support radius of particle {bad[0]} at ({where}) is "
+                             f"{self.radius[bad[0]]}; radii must be positive and finite"
+                             + (" (a mesh vertex without cells has no spacing: remove "
+                                "unused vertices)" if from_spacing else ""))
         _check_distinct(nodes, self.radius)
         self.dilation = support
         self.order, self.kernel = order, kernel
@@ -273,8 +298,12 @@ class RKBasis(_RKBase):
         self.integration = integration
         self.axisymmetric = axisymmetric
 
-        geometry = cell_geometry(mesh, intorder)
-        boundary = facet_geometry(mesh, intorder)
+        try:
+            geometry = cell_geometry(mesh, intorder)
+            boundary = facet_geometry(mesh, intorder)
+        except NotImplementedError:
+            raise ValueError(f"scikit-fem has no Gauss rule of degree {intorder} for "
+                             f"{type(mesh).__name__} cells; use a lower intorder") from None
         xq = geometry.global_coordinates().reshape(mesh.dim(), -1)
         xb = boundary.global_coordinates().reshape(mesh.dim(), -1)
         # one build for every point the basis will need (cell and boundary

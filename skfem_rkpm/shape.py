@@ -378,20 +378,28 @@ def rk_shape_functions(
         ``M(X)`` singular; the message names the point, how many particles
         cover it and the smallest support that would work.
     """
-    x = np.atleast_2d(np.asarray(x, dtype=float))
-    nodes = np.atleast_2d(np.asarray(nodes, dtype=float))
+    x = coordinates(x, "evaluation point")
+    nodes = coordinates(nodes, "particle")
     dim, npoints = x.shape
     if nodes.shape[0] != dim:
         raise ValueError(
             f"points have dimension {dim} but nodes have dimension {nodes.shape[0]}"
         )
     nnodes = nodes.shape[1]
-    radius = np.broadcast_to(np.asarray(radius, dtype=float), (nnodes,)).copy()
-    if not np.all(radius > 0):
-        bad = int(np.flatnonzero(~(radius > 0))[0])
+    if nnodes == 0:
+        raise ValueError("there are no particles (nodes has shape "
+                         f"{nodes.shape}); give at least one")
+    check_order(order)
+    try:
+        radius = np.broadcast_to(np.asarray(radius, dtype=float), (nnodes,)).copy()
+    except (TypeError, ValueError):
+        raise ValueError(f"support radii must be one positive number or one per "
+                         f"particle ({nnodes}), not {radius!r}") from None
+    if not np.all((radius > 0) & np.isfinite(radius)):
+        bad = int(np.flatnonzero(~((radius > 0) & np.isfinite(radius)))[0])
         raise ValueError(
             f"support radius of particle {bad} at {nodes[:, bad]} is {radius[bad]}; "
-            "radii must be positive"
+            "radii must be positive and finite"
         )
     if support not in ("radial", "box"):
         raise ValueError(f"support must be 'radial' or 'box', not {support!r}")
@@ -403,6 +411,30 @@ def rk_shape_functions(
         _raise_singular(bad, np.diff(table.indptr), x, nodes, radius, order,
                         window, support, dilation, rcond_min, why)
     return table
+
+
+def coordinates(x, what):
+    """Points as a float array (dim, n), refusing non-finite coordinates."""
+    try:
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} coordinates must be an array of numbers of shape "
+                         f"(dim, n), not {x!r}") from None
+    if x.ndim != 2:
+        raise ValueError(f"{what} coordinates must have shape (dim, n), not {x.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(x), axis=0))
+    if bad.size:
+        where = ", ".join(f"{c:g}" for c in x[:, bad[0]])
+        raise ValueError(f"{what} {bad[0]} has non-finite coordinates ({where}) "
+                         f"({bad.size} such {what}s); every coordinate must be finite")
+    return x
+
+
+def check_order(order):
+    """Refuse basis orders other than non-negative integers."""
+    if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, np.integer)) \
+            or order < 0:
+        raise ValueError(f"basis order must be a non-negative integer, not {order!r}")
 
 
 def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):

@@ -12,7 +12,7 @@ from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad, Me
 
 from skfem_rkpm import RKBasis
 from skfem_rkpm.mechanics.contact import DEFAULT_PENALTY_FACTOR, Platen, RigidContact
-from skfem_rkpm.mechanics.materials import J2Material, linear, perfect
+from skfem_rkpm.mechanics.materials import Hardening, J2Material, linear, perfect
 from skfem_rkpm.mechanics.problem import SolidProblem
 from skfem_rkpm.meshes import load, rectangle
 from skfem_rkpm.shape import SingularMomentError
@@ -313,7 +313,8 @@ def test_non_finite_prescribed_function_stops_the_run_naming_it():
     ((-1.0, 0.3), "Young's modulus E must be positive and finite, not -1.0"),
     ((E, 0.5), r"Poisson's ratio must lie in \(-1, 0.5\), not 0.5"),
     ((E, np.nan), r"Poisson's ratio must lie in \(-1, 0.5\), not nan"),
-    ((E, 0.3, perfect(np.nan)), "initial yield stress must be positive"),
+    ((E, 0.3, Hardening("custom", lambda a: np.nan + 0 * a, lambda a: 0 * a)),
+     r"initial yield stress must be positive and finite, not nan \(custom hardening\)"),
 ])
 def test_bad_material_constants_are_refused(args, message):
     with pytest.raises(ValueError, match=message):

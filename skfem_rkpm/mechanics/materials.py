@@ -46,20 +46,42 @@ class Hardening:
         return self.stress(alpha), self.slope(alpha)
 
 
+def _number(value, name, low=0.0, strict=True):
+    """``value`` as a finite float above ``low``; a ValueError naming it otherwise."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = None
+    ok = x is not None and not isinstance(value, (bool, np.bool_)) and np.isfinite(x)
+    if not ok or not (x > low if strict else x >= low):
+        relation = ">" if strict else ">="
+        raise ValueError(f"{name} must be a finite number {relation} {low:g}, not {value!r}")
+    return x
+
+
 def perfect(sigma_y):
     """Perfect plasticity, ``σ_y`` constant."""
+    sigma_y = _number(sigma_y, "yield stress")
     return Hardening("perfect", lambda a: sigma_y + 0.0 * a, lambda a: 0.0 * a)
 
 
 def linear(sigma_y, H):
-    """Linear isotropic hardening ``σ_y + H ε̄ᵖ``."""
+    """Linear isotropic hardening ``σ_y + H ε̄ᵖ`` (``H >= 0``)."""
+    sigma_y = _number(sigma_y, "yield stress")
+    H = _number(H, "hardening modulus H", strict=False)
     return Hardening("linear", lambda a: sigma_y + H * a, lambda a: H + 0.0 * a)
 
 
 def swift(K, eps0, n):
     """Swift power law ``K (ε₀ + ε̄ᵖ)ⁿ`` (the paper's sheet: 589 (1e-4 + ε̄ᵖ)^0.216 MPa)."""
-    if not (K > 0 and eps0 > 0 and n > 0):
-        raise ValueError(f"Swift law needs K > 0, eps0 > 0, n > 0 (got {K}, {eps0}, {n})")
+    try:
+        K, eps0, n = (_number(v, name) for v, name in ((K, "K"), (eps0, "eps0"), (n, "n")))
+    except ValueError as err:
+        raise ValueError(f"Swift law needs K > 0, eps0 > 0, n > 0: {err}") from None
+    if not K * eps0 ** n > 0:
+        raise ValueError(f"Swift law: the initial yield stress K eps0^n = {K * eps0 ** n:g} "
+                         f"underflows (K = {K}, eps0 = {eps0}, n = {n}); use a smaller n "
+                         "or a larger eps0")
     return Hardening("swift", lambda a: K * (eps0 + np.maximum(a, 0.0)) ** n,
                      lambda a: K * n * (eps0 + np.maximum(a, 0.0)) ** (n - 1.0))
 
@@ -111,12 +133,25 @@ class J2Material:
     """
 
     def __init__(self, E, nu, hardening=None):
-        if not (np.isfinite(E) and E > 0):
-            raise ValueError(f"Young's modulus E must be positive and finite, not {E}")
-        if not -1.0 < nu < 0.5:
-            raise ValueError(f"Poisson's ratio must lie in (-1, 0.5), not {nu}")
-        if hardening is not None and not np.all(hardening.stress(0.0) > 0):
-            raise ValueError("the initial yield stress must be positive")
+        try:
+            E = _number(E, "E")
+        except ValueError:
+            raise ValueError(f"Young's modulus E must be positive and finite, not {E!r}") \
+                from None
+        try:
+            nu = _number(nu, "nu", low=-1.0)
+        except ValueError:
+            nu = np.nan if isinstance(nu, (int, float)) else nu
+        if not (isinstance(nu, float) and nu < 0.5):
+            raise ValueError(f"Poisson's ratio must lie in (-1, 0.5), not {nu!r}")
+        if hardening is not None:
+            if not isinstance(hardening, Hardening):
+                raise ValueError("hardening must be a Hardening law (perfect, linear, "
+                                 f"swift) or None, not {hardening!r}")
+            sigma0 = np.asarray(hardening.stress(0.0), dtype=float)
+            if not np.all((sigma0 > 0) & np.isfinite(sigma0)):
+                raise ValueError(f"the initial yield stress must be positive and finite, "
+                                 f"not {sigma0} ({hardening.name} hardening)")
         self.E, self.nu, self.hardening = E, nu, hardening
         self.G = E / (2.0 * (1.0 + nu))
         self.K = E / (3.0 * (1.0 - 2.0 * nu))

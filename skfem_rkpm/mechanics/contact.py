@@ -112,16 +112,37 @@ def _tangent_of(n):
     return np.stack([n[..., 1], -n[..., 0]], axis=-1)
 
 
+def _floats(value, what, shape):
+    """``value`` as a float array; a ValueError naming ``what`` if it is not numbers."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be numbers of shape {shape}, not {value!r}") from None
+
+
+def _number(value, what):
+    """``value`` as a finite float; a ValueError naming ``what`` otherwise."""
+    try:
+        x = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        x = None
+    if x is None or x.shape != () or isinstance(value, (bool, np.bool_)) \
+            or not np.isfinite(x):
+        raise ValueError(f"{what} must be a finite number, not {value!r}")
+    return float(x)
+
+
 def _unit(v, what):
-    v = np.asarray(v, dtype=float)
-    norm = np.linalg.norm(v)
-    if v.shape != (2,) or not (np.isfinite(norm) and norm > 0):
+    v = _floats(v, what, "(2,)")
+    scale = np.abs(v).max() if v.shape == (2,) else np.nan
+    if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"{what} must be a finite non-zero 2D vector, not {v.tolist()}")
-    return v / norm
+    v = v / scale  # no overflow or underflow in the norm
+    return v / np.linalg.norm(v)
 
 
 def _point(p, what):
-    p = np.asarray(p, dtype=float)
+    p = _floats(p, what, "(2,)")
     if p.shape != (2,) or not np.all(np.isfinite(p)):
         raise ValueError(f"{what} must be two finite coordinates (x, y), not {p!r}")
     return p
@@ -131,7 +152,7 @@ def _motion(motion):
     """``t -> (dx, dy)`` of a callable or of a final displacement."""
     if callable(motion):
         return motion
-    final = np.asarray(motion, dtype=float)
+    final = _floats(motion, "motion", "(2,)")
     if final.shape != (2,) or not np.all(np.isfinite(final)):
         raise ValueError("motion must be a callable t -> (dx, dy) or a final "
                          f"displacement (dx, dy), not {motion!r}")
@@ -434,7 +455,7 @@ class Polyline(Tool):
     def __init__(self, points, fillet=0.0, closed=False, motion=(0.0, 0.0),
                  name="polyline"):
         super().__init__(motion, name)
-        pts = np.asarray(points, dtype=float)
+        pts = _floats(points, "polyline points", "(m, 2)")
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("polyline points must have shape (m, 2) with m >= 2, "
                              f"not {pts.shape}")
@@ -442,12 +463,18 @@ class Polyline(Tool):
             raise ValueError("polyline points must be finite")
         if closed:
             pts = np.vstack([pts, pts[:1]])
-        lengths = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            lengths = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        if not np.all(np.isfinite(lengths)):
+            raise ValueError("polyline coordinates are too large: segment "
+                             f"{int(np.flatnonzero(~np.isfinite(lengths))[0])} has an "
+                             "infinite length; use smaller units")
         if np.any(lengths <= 1e-14 * max(np.abs(pts).max(), 1.0)):
             k = int(np.argmin(lengths))
             raise ValueError(f"polyline points {k} and {k + 1} coincide: "
                              "segments need a positive length")
-        if not (np.isfinite(fillet) and fillet >= 0):
+        fillet = _number(fillet, "fillet radius")
+        if not fillet >= 0:
             raise ValueError(f"fillet radius must be >= 0, not {fillet!r}")
         kinds, geometry = self._build_chain(pts, float(fillet), closed, lengths)
         starts, ends = _chain_normals(kinds, geometry)
@@ -521,9 +548,10 @@ class Arc(Tool):
     def __init__(self, center, radius, angles, motion=(0.0, 0.0), name="arc"):
         super().__init__(motion, name)
         c = _point(center, "arc center")
-        if not (np.isfinite(radius) and radius > 0):
+        radius = _number(radius, "arc radius")
+        if not radius > 0:
             raise ValueError(f"arc radius must be positive, not {radius!r}")
-        a = np.asarray(angles, dtype=float)
+        a = _floats(angles, "arc angles", "(2,)")
         if a.shape != (2,) or not np.all(np.isfinite(a)):
             raise ValueError(f"arc angles must be (start, end) in degrees, not {angles!r}")
         sweep = np.radians(a[1] - a[0])

@@ -10,6 +10,7 @@ basis, problem, conditions and tools that :func:`skfem_rkpm.runner.run`
 drives, exactly as a script would.
 """
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -41,6 +42,13 @@ def _positive(v):
     return None if v > 0 else "must be positive"
 
 
+def _quadrature(v):
+    if v < 1:
+        return "must be positive"
+    return None if v <= MAX_QUADRATURE else (
+        f"must be at most {MAX_QUADRATURE} (the highest Gauss rule for triangles)")
+
+
 def _non_negative(v):
     return None if v >= 0 else "must not be negative"
 
@@ -53,6 +61,44 @@ def _pair(v):
     return None if len(v) == 2 else "needs two values"
 
 
+def _not_empty(v):
+    return None if v else "must name at least one boundary (omit the key for all of them)"
+
+
+def _cell_counts(v):
+    if len(v) != 2:
+        return "needs two values [nx, ny]"
+    return None if min(v) >= 1 else "needs at least one cell in each direction"
+
+
+def _grading(v):
+    if len(v) != 2:
+        return "needs two values"
+    return None if min(v) >= 1 else "ratios must be >= 1 (largest / smallest cell)"
+
+
+def _is_number(x):
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _xy(v):
+    """True if ``v`` is a point [x, y] of two finite numbers."""
+    return (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)
+            and all(math.isfinite(x) for x in v))
+
+
+def _polyline_points(v):
+    if isinstance(v, list) and len(v) >= 2 and all(_xy(p) for p in v):
+        return None
+    return "must be a list of at least two [x, y] points of finite numbers"
+
+
+def _named_points(v):
+    if isinstance(v, dict) and all(_xy(p) for p in v.values()):
+        return None
+    return "must be a table of points, {name = [X, Y], ...}, of finite numbers"
+
+
 def _increasing_pair(v):
     if len(v) != 2:
         return "needs two values [min, max]"
@@ -62,7 +108,9 @@ def _increasing_pair(v):
 def _friction(v):
     if isinstance(v, str):
         return None if v == "stick" else 'must be a number >= 0 or "stick"'
-    return None if v >= 0 else 'must be a number >= 0 or "stick"'
+    if _is_number(v) and math.isinf(v) and v > 0:
+        return 'must be finite; use "stick" for no sliding'
+    return None if _is_number(v) and v >= 0 else 'must be a number >= 0 or "stick"'
 
 
 def _segments(v):
@@ -72,7 +120,7 @@ def _segments(v):
     ends = []
     for item in v:
         if not (isinstance(item, list) and len(item) == 2
-                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
+                and all(_is_number(x) for x in item) and math.isfinite(item[0])
                 and isinstance(item[1], int) and item[1] >= 1):
             return message
         ends.append(float(item[0]))
@@ -80,6 +128,9 @@ def _segments(v):
 
 
 COMPONENTS = {"x": 0, "y": 1, "z": 2, "r": 0}
+
+#: highest Gauss rule degree scikit-fem has for triangles
+MAX_QUADRATURE = 19
 
 SCHEMA = {
     "model": {
@@ -93,10 +144,10 @@ SCHEMA = {
                     doc="rectangle section with divisions, or a gmsh .geo/.msh file"),
         "x": Key("list[float]", check=_increasing_pair, doc="rectangle: [xmin, xmax]"),
         "y": Key("list[float]", check=_increasing_pair, doc="rectangle: [ymin, ymax]"),
-        "divisions": Key("list[int]", check=_pair,
+        "divisions": Key("list[int]", check=_cell_counts,
                          doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) vertices"),
         "cells": Key("str", "quad", choices=("quad", "tri"), doc="rectangle: cell type"),
-        "grading": Key("list[float]", check=_pair,
+        "grading": Key("list[float]", check=_grading,
                        doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform)"),
         "file": Key("str", doc="gmsh: path of a .msh or .geo file (relative to the scene file) "
                                "with named physical boundaries"),
@@ -116,7 +167,7 @@ SCHEMA = {
         "kernel": Key("str", "cubic", choices=("cubic", "quartic"), doc="rkpm: window"),
         "support_shape": Key("str", "radial", choices=("radial", "box"), doc="rkpm: support"),
         "integration": Key("str", "vci", choices=("vci", "gauss"), doc="rkpm: integration"),
-        "quadrature": Key("int", 4, check=_positive,
+        "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),
                        doc="fem: element"),
@@ -141,7 +192,8 @@ SCHEMA = {
                     doc="flat platen (infinite line), polyline of segments, circular arc"),
         "point": Key("list[float]", check=_pair, doc="platen: a point of the surface"),
         "normal": Key("list[float]", check=_pair, doc="platen: normal pointing to the body"),
-        "points": Key("any", doc="polyline: [[x, y], ...], body on the left"),
+        "points": Key("any", check=_polyline_points,
+                      doc="polyline: [[x, y], ...], body on the left"),
         "fillet": Key("float", 0.0, check=_non_negative, doc="polyline: corner radius"),
         "center": Key("list[float]", check=_pair, doc="arc: center"),
         "radius": Key("float", check=_positive, doc="arc: radius"),
@@ -149,8 +201,9 @@ SCHEMA = {
         "motion": Key("list[float]", [0.0, 0.0], check=_pair,
                       doc="displacement of the tool at the end of the run"),
         "friction": Key("any", 0.0, check=_friction, doc='Coulomb μ, or "stick"'),
-        "slaves": Key("list[str]", doc="boundaries whose particles may touch the tool "
-                                       "(default: the whole boundary)"),
+        "slaves": Key("list[str]", check=_not_empty,
+                      doc="boundaries whose particles may touch the tool "
+                          "(default: the whole boundary)"),
         "penalty": Key("float", check=_positive,
                        doc="normal penalty per unit area (default from E and the spacing)"),
         "collocation": Key("str", "nodal", choices=("nodal", "quadrature"),
@@ -177,8 +230,9 @@ SCHEMA = {
         "fields": Key("bool", True, doc="write fields.xdmf (+ .h5) for ParaView"),
         "every": Key("int", 1, check=_positive, doc="write fields every n-th step"),
         "figures": Key("bool", True, doc="write PNG figures"),
-        "points": Key("any", {}, doc="material points to follow, {name = [X, Y]}; their "
-                                     "current positions go into history.csv"),
+        "points": Key("any", {}, check=_named_points,
+                      doc="material points to follow, {name = [X, Y]}; their "
+                          "current positions go into history.csv"),
     },
 }
 
@@ -289,6 +343,9 @@ def _section(path, values, fail):
                      for v in value]
         if not _check_type(spec.kind, value):
             fail(f"{path}.{key}", f"must be of type {spec.kind}, not {value!r}")
+        if spec.kind in ("float", "list[float]") and not all(
+                math.isfinite(v) for v in (value if isinstance(value, list) else [value])):
+            fail(f"{path}.{key}", f"must be finite, not {value!r}")
         if spec.choices and value not in spec.choices:
             fail(f"{path}.{key}", f"must be one of {list(spec.choices)}, not {value!r}")
         if spec.check is not None:
@@ -306,6 +363,9 @@ def _section(path, values, fail):
 
 def _check_combinations(scene, fail):
     geometry = scene["geometry"]
+    if scene["model"]["type"] == "3d":
+        fail("model.type", '"3d" needs a 3D mesh, but scene geometries (rectangle, gmsh) '
+                           'are 2D sections; use "plane_strain" or "axisymmetric"')
     if geometry["kind"] == "rectangle":
         for key in ("x", "y", "divisions"):
             if geometry[key] is None:
@@ -336,14 +396,26 @@ def _check_combinations(scene, fail):
             for key in needs:
                 if section[key] is None:
                     fail(name, f"a {section['kind']} needs {key!r}")
+            try:
+                tool_from(name.split(".", 1)[1], section)
+            except ValueError as err:
+                fail(name, str(err))
+    try:
+        material_from(material)
+    except ValueError as err:
+        fail("material", str(err))
 
 
 def load_scene(path, settings=()):
     """Read, override (``settings``: ``"key.path=value"`` strings) and validate."""
     path = Path(path)
-    if not path.exists():
+    if not path.is_file():
         raise SceneError(f"{path}: no such scene file")
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as err:
+        raise SceneError(f"{path}: not a TOML scene file (not UTF-8 text: byte "
+                         f"{err.start} is {err.object[err.start:err.start + 1]!r})") from None
     for setting in settings:
         text = apply_setting(text, setting)
     return parse_scene(text, str(path), base=path.parent)
@@ -429,6 +501,22 @@ def material_from(section):
     return J2Material(section["E"], section["nu"], hardening)
 
 
+def tool_from(name, section):
+    """The rigid :class:`~skfem_rkpm.mechanics.contact.Tool` of a
+    ``[tools.NAME]`` section (its geometry and motion)."""
+    from .mechanics.contact import Arc, Platen, Polyline
+
+    kind, motion = section.get("kind", "platen"), section.get("motion") or (0.0, 0.0)
+    if kind == "platen":
+        return Platen(section["point"], section["normal"], motion, name)
+    if kind == "polyline":
+        return Polyline(section["points"], section.get("fillet") or 0.0, motion=motion,
+                        name=name)
+    if kind == "arc":
+        return Arc(section["center"], section["radius"], section["angles"], motion, name)
+    raise SceneError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
+
+
 def mesh_from(section, base=None):
     """The background mesh of a scene's geometry section."""
     from .meshes import graded_rectangle, load, rectangle
@@ -437,7 +525,10 @@ def mesh_from(section, base=None):
         path = Path(section["file"])
         if base is not None and not path.is_absolute():
             path = Path(base) / path
-        return load(path)
+        try:
+            return load(path)
+        except ValueError as err:
+            raise SceneError(f"geometry.file: {err}") from err
     (x0, x1), (y0, y1) = section["x"], section["y"]
     nx, ny = section["divisions"]
     if section.get("x_segments") or section.get("y_segments"):

@@ -1022,6 +1022,22 @@ def _touch_fraction(gap, previous_gap, was_active):
     return phi, dphi
 
 
+def _warn_if_out_of_reach(tool, X, samples=21):
+    """Warn if ``tool`` stays clear of the reference points ``X`` at every
+    load factor of ``[0, 1]`` (sampled): a misplaced tool or a motion in the
+    wrong direction.  Only a warning: loads may still deform the part onto it."""
+    import warnings
+
+    gaps = [tool.project(X, t).gap.min() for t in np.linspace(0.0, 1.0, samples)]
+    k = int(np.argmin(gaps))
+    if gaps[k] > 0:
+        warnings.warn(f"tool {tool.name!r} does not reach the part during its motion: the "
+                      f"smallest gap to the undeformed slave boundary is {gaps[k]:.4g} "
+                      f"(at t = {k / (samples - 1):g}); unless other loads deform the part "
+                      "onto it, it carries no force; check its position and motion",
+                      stacklevel=3)
+
+
 class RigidContact:
     """Penalty frictional contact of a body with a rigid moving tool
     (Sec. 4.3, Eq. 4.25-4.29), a contribution for
@@ -1076,6 +1092,7 @@ class RigidContact:
                         if tangential_penalty is None
                         else _positive(tangential_penalty, "tangential penalty"))
         self.state = self.trial = self._initial_state()
+        _warn_if_out_of_reach(tool, self.points.X)
 
     def _initial_state(self):
         X, m = self.points.X, self.points.m

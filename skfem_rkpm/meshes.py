@@ -575,6 +575,31 @@ def from_gmsh():
     return mesh
 
 
+def _check_gmsh_input(path):
+    """Refuse files that are neither a ``.msh`` (which starts with
+    ``$MeshFormat``) nor ``.geo`` text before gmsh sees them: gmsh reads
+    anything else with its ``.geo`` parser, which NUL or non-UTF-8 bytes
+    leave broken for the rest of the process (every later ``.geo`` file
+    then fails with a syntax error)."""
+    with open(path, "rb") as handle:
+        head = handle.read(64)
+        if head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"$MeshFormat"):
+            return
+        data = head + handle.read()
+    if path.suffix.lower() == ".msh":
+        raise ValueError(f"mesh file '{path}' is not a gmsh .msh file: it does not start "
+                         "with $MeshFormat (truncated at the start, or another format?)")
+    bad = data.find(b"\0")
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        bad = err.start if bad < 0 else min(bad, err.start)
+    if bad >= 0:
+        line = data.count(b"\n", 0, bad) + 1
+        raise ValueError(f"mesh file '{path}' is neither a .msh file nor .geo text: byte "
+                         f"{bad} (line {line}) is {data[bad:bad + 1]!r}")
+
+
 def load(path):
     """Read a gmsh ``.msh`` file, or mesh a ``.geo`` file, into a scikit-fem mesh.
 
@@ -601,6 +626,7 @@ def load(path):
     if not path.is_file():
         what = "is not a file" if path.exists() else "does not exist"
         raise ValueError(f"mesh file '{path}' {what}")
+    _check_gmsh_input(path)
     with _gmsh_model("load"):
         try:
             gmsh.merge(str(path))

@@ -130,7 +130,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except SceneError as err:
+    except ValueError as err:  # SceneError, and the library's checks of the input
         print(f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -258,9 +258,9 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
             contributions=(), linear_solver="auto"):
     """Newton iterations of one step; returns the converged data or raises.
 
-    Once the prescribed values are met, every update is damped by halving
-    (at most 4 times) until the residual decreases: near the solution the
-    full step is taken and convergence stays quadratic.
+    Once the prescribed values are met, each update ``δ`` is scaled by the
+    energy line search of :func:`_line_search`; near the solution the full
+    step is taken and convergence stays quadratic.
     """
 
     def state(d):
@@ -281,39 +281,99 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
 
     gap_tol = 1e-12 * max(np.abs(g).max(initial=0), 1.0)
     d = d.copy()
-    ev, K, r, rel = state(d)
-    residuals, energies = [rel], []
+    current = state(d)
+    residuals, energies = [current[3]], []
     first_energy = None
     for it in range(1, max_iterations + 1):
         gap = g - C @ d
-        delta, _ = solve_constrained(K, r, C, gap, solver=linear_solver)
-        energy = abs(delta @ r)
+        delta = _update(current[1], current[2], C, gap, linear_solver, contributions)
+        energy = abs(delta @ current[2])
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)
-        damp = np.abs(gap).max(initial=0.0) <= gap_tol
-        step = 1.0
-        for attempt in range(5):
-            try:
-                trial = d + step * delta
-                ev_t, K_t, r_t, rel_t = state(trial)
-            except InvertedElementError:
-                if not damp or attempt == 4:
-                    raise
-                step /= 2.0
-                continue
-            if not damp or rel_t < rel or attempt == 4:
-                break
-            step /= 2.0
-        d, ev, K, r, rel = trial, ev_t, K_t, r_t, rel_t
+        if np.abs(gap).max(initial=0.0) <= gap_tol:
+            step, trial = _line_search(state, d, delta, current[2])
+        else:  # the step that meets the prescribed values is taken whole
+            step, trial = 1.0, state(d + delta)
+        d, current = d + step * delta, trial
+        rel = current[3]
         residuals.append(rel)
         log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}"
-            + (f", step {step:g}" if step < 1 else ""))
+            + (f", step {step:.3g}" if step < 1 else ""))
         if rel <= tol and np.abs(g - C @ d).max(initial=0.0) <= gap_tol:
+            ev, _, r, _ = current
             return d, ev, fit.multipliers(-r), it, residuals, energies
         if it > 3 and rel > 1e3 * residuals[1]:
             raise NonConvergence(f"residual diverges ({rel:.3e})")
     raise NonConvergence(f"no convergence in {max_iterations} iterations "
                          f"(residual {residuals[-1]:.3e})")
+
+
+def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
+    """Newton update ``δ`` with the contact nodes it brings into touch.
+
+    A contribution with a ``touching(δ)`` method (rigid contact) reports
+    the nodes that ``δ`` would push into the tool although they are apart
+    now, with the force and stiffness of their penalty in the linear model;
+    the system is solved again with them, until the touching set repeats
+    (at most ``rounds`` solves more).  Without this, a node apart at the
+    start of an iteration has no stiffness, the update drives it deep into
+    the tool and the line search can only take a tiny part of it.
+    """
+    delta, _ = solve_constrained(K, r, C, gap, solver=linear_solver)
+    touching = [c for c in contributions if hasattr(c, "touching")]
+    previous = None
+    for _ in range(rounds):
+        found = [c.touching(delta) for c in touching]
+        found = [x for x in found if x is not None]
+        key = [x[0].tobytes() for x in found]
+        if not found or key == previous:
+            break
+        previous = key
+        K_touch = K + sum(x[2] for x in found)
+        r_touch = r - sum(x[1] for x in found)
+        delta, _ = solve_constrained(K_touch, r_touch, C, gap, solver=linear_solver)
+    return delta
+
+
+def _line_search(state, d, delta, r, tries=5, ratio=0.5):
+    """Step length ``s`` along the Newton update ``δ`` and the state there.
+
+    The energy line search: ``G(s) = δ · r(d + s δ)`` is minus the slope
+    of the potential along ``δ`` (``r`` the out-of-balance force), and
+    ``G(0) = δᵀ K δ > 0``.  The full step is kept when ``|G(1)| ≤ ratio ·
+    G(0)``, i.e. when it lands near the minimum along ``δ``; otherwise
+    ``s`` moves to the zero of ``G`` by regula falsi between the last
+    bracketing pair.  Unlike the size of the residual, ``G`` does not
+    depend on which force dominates: a penalty contact force that falls
+    from a deep penetration shows as progress.  An inverted element
+    halves the step.  Constrained directions (``C δ = 0``) do no work
+    against the reactions, so ``δ · r`` needs no reaction correction.
+    """
+    g0 = delta @ r
+    lo, g_lo = 0.0, g0
+    hi, g_hi = None, None
+    s = 1.0
+    for attempt in range(tries):
+        try:
+            trial = state(d + s * delta)
+        except InvertedElementError:
+            if attempt == tries - 1:
+                raise
+            hi, g_hi = None, None
+            s = 0.5 * (lo + s)
+            continue
+        g_s = delta @ trial[2]
+        if not g0 > 0 or abs(g_s) <= ratio * abs(g0) or attempt == tries - 1:
+            return s, trial
+        if g_s > 0:  # still downhill: the zero lies beyond s
+            if s == 1.0 or hi is None:
+                return s, trial
+            lo, g_lo = s, g_s
+        else:
+            hi, g_hi = s, g_s
+        s = lo + (hi - lo) * g_lo / (g_lo - g_hi)
+        s = min(max(s, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
+    return s, trial
 
 
 def _reactions(prescribed, groups, lam):

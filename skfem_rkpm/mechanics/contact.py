@@ -969,7 +969,7 @@ def _curvature_blocks(proj, pressure, shear):
             + (shear * kappa)[:, None, None] * _outer(n, t))
 
 
-def _rigid_tangent(pts, proj, slipped, law, omega_n, omega_t, mu):
+def _rigid_tangent(pts, proj, Bn, slipped, law, omega_n, omega_t, mu):
     """Consistent tangent of the rigid-tool contact force (Eq. 4.28-4.29).
 
     With ``B_n``, ``B_t`` the rows ``n_qᵀ G_q``, ``t_qᵀ G_q`` of the slave
@@ -991,7 +991,6 @@ def _rigid_tangent(pts, proj, slipped, law, omega_n, omega_t, mu):
     G, w = pts.G, pts.weights
     M = pts.weighted_hats
     inv_W = 1.0 / pts.node_weights
-    Bn = _directional(G, proj.normal)
     K = omega_n * (Bn.T @ M.T @ sp.diags(active * inv_W) @ M @ Bn)
     if mu > 0:
         a = 1.0 - proj.curvature * np.einsum("ni,ni->n", slipped, proj.normal.T)
@@ -1131,11 +1130,40 @@ class RigidContact:
         pressure, shear = law[0], law[1]
         traction = (pts.hats @ pressure) * proj.normal + (pts.hats @ shear) * proj.tangent
         f = pts.G.T @ (-(pts.weights * traction)).T.ravel()
-        K = _rigid_tangent(pts, proj, slipped, law, self.omega_n, self.omega_t, self.mu)
+        Bn = _directional(pts.G, proj.normal)
+        K = _rigid_tangent(pts, proj, Bn, slipped, law, self.omega_n, self.omega_t, self.mu)
+        self._gap_rows = (pts.weighted_hats @ Bn) / pts.node_weights[:, None]
         self.trial = ContactState(x, proj.gap, proj.normal, proj.tangent, relative,
                                   node_gap, pressure, shear, law[2], law[3],
                                   (pts.weights * traction).sum(axis=1))
         return f, K
+
+    def touching(self, delta):
+        """Penalty force and stiffness of the contact nodes that the update
+        ``delta`` would bring into contact, in the linear model of the last
+        evaluation.
+
+        A node that is apart at the last evaluation has no stiffness in
+        the tangent, so a Newton update may push it deep into the tool (a
+        die node under a punch stroke).  Its linearized gap after the
+        update is ``ĝ + Ĝ δ`` with ``Ĝ = W⁻¹ M B_n``; if that is negative,
+        the normal law of Eq. (4.5) acts in the linear model as the force
+        ``ω_n Ĝᵀ W ĝ`` plus the stiffness ``ω_n Ĝᵀ W Ĝ``, which
+        :func:`skfem_rkpm.solver.newton_steps` adds before it solves again
+        (an active-set iteration).  Returns ``(nodes, f, K)`` (``nodes`` a
+        boolean mask of the touching nodes) or ``None`` if no node is
+        predicted to touch.
+        """
+        apart = ~self.trial.active
+        rows = self._gap_rows
+        predicted = self.trial.node_gap + rows @ delta
+        touching = apart & (predicted < 0.0)
+        if not touching.any():
+            return None
+        scale = self.omega_n * self.points.node_weights * touching
+        f = rows.T @ (scale * self.trial.node_gap)
+        K = rows.T @ sp.diags(scale) @ rows
+        return touching, f, K.tocsr()
 
     def commit(self):
         """Accept the last evaluation as the converged state (Eq. 4.11)."""

@@ -125,6 +125,17 @@ class _Reactions:
         return force - self.C.T @ self.multipliers(force) if self.lu else force
 
 
+#: a step also converges when the update's energy ``|δ·r|`` has fallen to this
+#: fraction of the step's first one and the residual is below
+#: ``SETTLED_RESIDUAL * tol``: the corrections are then at round-off while a
+#: contact node at zero gap flips in and out of contact by 1e-9 of the
+#: spacing, and its penalty keeps the residual from falling further
+#: (measured on the punch stretch at 29 mm: residuals 4e-6..5e-5 for 12
+#: iterations with energies 1e-15..1e-17)
+ROUND_OFF_ENERGY = 1e-14
+SETTLED_RESIDUAL = 100.0
+
+
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
                  contributions=(), start=0.0, on_step=None, extrapolate=True,
@@ -143,7 +154,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     tol : float
         Relative residual tolerance (the paper's 1e-6): the out-of-balance
         force, reactions removed, over the largest of ``|f_int|``,
-        ``|f_ext|`` and each contribution's ``|f_c|``.
+        ``|f_ext|`` and each contribution's ``|f_c|``.  A step whose
+        updates have reached round-off (energy ``ROUND_OFF_ENERGY`` of the
+        first) converges with a residual up to ``SETTLED_RESIDUAL * tol``.
     max_iterations : int
         Newton iterations before a step is cut back.
     max_cutbacks : int
@@ -299,7 +312,8 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
         residuals.append(rel)
         log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}"
             + (f", step {step:.3g}" if step < 1 else ""))
-        if rel <= tol and np.abs(g - C @ d).max(initial=0.0) <= gap_tol:
+        settled = energies[-1] <= ROUND_OFF_ENERGY and rel <= SETTLED_RESIDUAL * tol
+        if (rel <= tol or settled) and np.abs(g - C @ d).max(initial=0.0) <= gap_tol:
             ev, _, r, _ = current
             return d, ev, fit.multipliers(-r), it, residuals, energies
         if it > 3 and rel > 1e3 * residuals[1]:

@@ -227,13 +227,14 @@ def figure(records, ref, path):
     import matplotlib.pyplot as plt
 
     fig, (ax_dofs, ax_time) = plt.subplots(1, 2, figsize=(14, 6))
+    colors = plt.get_cmap("tab20").colors
     for i, method in enumerate(dict.fromkeys(r["method"] for r in records)):
         rows = [r for r in records if r["method"] == method and r.get("completed")]
         if not rows:
             continue
         rk = method.startswith("RK")
         style = dict(marker="o" if rk else "s", ls="-" if rk else "--",
-                     color=f"C{i % 10}", ms=4)
+                     color=colors[(2 * i) % 20 + (2 * i) // 20 % 2], ms=4)
         if rk and "F-bar" not in method:
             style.update(ls=":", marker="x")
         err = [r["error"] for r in rows]

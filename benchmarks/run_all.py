@@ -108,8 +108,7 @@ def run(name, arguments, out, timeout):
         body += f"\nLast lines of the error output:\n\n```text\n{tail}\n```\n"
     (out / f"{name}.md").write_text("\n".join(head) + body)
     print(f"   {'ok' if ok else 'FAILED'}: {cpu:.0f} CPU s, {wall:.0f} s wall -> "
-          f"{(out / f'{name}.md').relative_to(ROOT) if out.is_relative_to(ROOT) else out}",
-          flush=True)
+          f"{out / f'{name}.md'}", flush=True)
     return dict(name=name, command=shown, ok=ok, cpu=cpu, wall=wall, load=load_before)
 
 

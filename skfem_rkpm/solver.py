@@ -21,7 +21,7 @@ from scipy.sparse.linalg import splu
 
 from .constraints import nodal_constraint, solve_constrained, weak_constraint
 from .linsolve import make_solver
-from .mechanics.problem import InvertedElementError
+from .mechanics.problem import InvertedElementError, NonFiniteError
 
 __all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "newton_steps"]
 
@@ -289,7 +289,10 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
         r = f_ext - f_int
         rel = np.linalg.norm(fit.out_of_balance(r)) / ref
         if not np.isfinite(rel):
-            raise NonConvergence("residual is not finite")
+            bad = np.flatnonzero(~np.isfinite(r))
+            where = f"first at unknown {bad[0]}" if bad.size else "its norm overflows"
+            raise NonFiniteError(f"the out-of-balance force is not finite ({where})",
+                                 bad)
         return ev, K, r, rel
 
     gap_tol = 1e-12 * max(np.abs(g).max(initial=0), 1.0)
@@ -334,6 +337,9 @@ def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
     the tool and the line search can only take a tiny part of it.
     """
     delta, _ = solve_constrained(K, r, C, gap, solver=linear_solver)
+    if not np.all(np.isfinite(delta)):
+        raise NonFiniteError("the Newton update is not finite (a singular tangent?)",
+                             np.flatnonzero(~np.isfinite(delta)))
     touching = [c for c in contributions if hasattr(c, "touching")]
     previous = None
     for _ in range(rounds):

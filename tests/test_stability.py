@@ -3,6 +3,7 @@ normalized supports, strongly perturbed particles, Poisson's ratio 0.4999,
 contact penalties over six decades, 1 to 100 load steps, mm-N-MPa against
 m-N-Pa, Newton failures, non-finite and malformed input."""
 
+import re
 import sys
 from pathlib import Path
 
@@ -13,7 +14,7 @@ from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad, Me
 from skfem_rkpm import RKBasis
 from skfem_rkpm.mechanics.contact import DEFAULT_PENALTY_FACTOR, Platen, RigidContact
 from skfem_rkpm.mechanics.materials import Hardening, J2Material, linear, perfect
-from skfem_rkpm.mechanics.problem import SolidProblem
+from skfem_rkpm.mechanics.problem import NonFiniteError, SolidProblem
 from skfem_rkpm.meshes import load, rectangle
 from skfem_rkpm.shape import SingularMomentError
 from skfem_rkpm.solver import Prescribed, newton_steps
@@ -332,6 +333,38 @@ def test_non_finite_prescribed_function_stops_the_run_naming_it():
     with pytest.raises(ValueError, match=r"prescribed values of top\[1\] at t = 0.75 are "
                        r"not finite at 3 of 3 nodes; first nan at X = \(0, 1\)"):
         newton_steps(problem, conditions, steps=4)
+
+
+def test_nan_during_a_run_stops_it_naming_step_point_and_quantity():
+    """A hardening law that breaks down beyond ε̄ᵖ = 0.02 (NaN) in a block
+    upset by 5 %: the steps before converge and are kept; the failing step
+    is cut back, then the run stops with a message that names the step,
+    the quantity (the return map's yield residual) and the first quadrature
+    point."""
+    mesh = rectangle(1.0, 1.0, 2, 2)
+    law = Hardening("breaks", lambda a: np.where(a > 0.02, np.nan, 300.0 + 0 * a),
+                    lambda a: 0.0 * a)
+    problem = SolidProblem(RKBasis(mesh, vector=True), J2Material(E, NU, law),
+                           "plane_strain")
+    conditions = [Prescribed("bottom", 1, 0.0), Prescribed("left", 0, 0.0),
+                  Prescribed("top", 1, -0.05)]
+    result = newton_steps(problem, conditions, steps=5, max_cutbacks=2)
+    assert not result.completed and len(result.history) >= 1
+    assert re.match(r"step \d+ to t = [\d.]+ failed after 2 cut-backs: the plastic "
+                    r"return map did not converge \(largest yield residual nan\) at \d+ "
+                    r"quadrature points; first in cell \d+ \(point \d+\) at X = \(",
+                    result.message), result.message
+    assert np.all(problem.state.alpha <= 0.02)  # the committed state is the last good one
+
+
+def test_nan_coefficients_name_the_deformation_gradient():
+    mesh = rectangle(1.0, 1.0, 2, 2)
+    problem = SolidProblem(RKBasis(mesh, vector=True), J2Material(E, NU), "plane_strain")
+    d = np.zeros(problem.N)
+    d[5] = np.nan
+    with pytest.raises(NonFiniteError, match=r"the deformation gradient F is not finite "
+                       r"at \d+ quadrature points; first in cell \d+ \(point \d+\)"):
+        problem.evaluate(d)
 
 
 @pytest.mark.parametrize("args, message", [

@@ -74,6 +74,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..constraints import transformation
+from .problem import NonFiniteError
 
 __all__ = ["DEFAULT_PENALTY_FACTOR", "DEFAULT_TANGENTIAL_FACTOR", "Projection", "Tool",
            "Platen", "Polyline", "polyline", "Arc", "SlavePoints", "slave_points",
@@ -1037,6 +1038,16 @@ def _warn_if_out_of_reach(tool, X, samples=21):
                       stacklevel=3)
 
 
+def _check_finite_traction(traction, X, name):
+    """NonFiniteError naming the first slave point with a NaN or inf traction."""
+    finite = np.isfinite(traction).all(axis=0)
+    if not finite.all():
+        bad = np.flatnonzero(~finite)
+        raise NonFiniteError(
+            f"the contact traction of tool {name!r} is not finite at {bad.size} slave "
+            f"points; first at X = ({X[0, bad[0]]:.4g}, {X[1, bad[0]]:.4g})", bad)
+
+
 class RigidContact:
     """Penalty frictional contact of a body with a rigid moving tool
     (Sec. 4.3, Eq. 4.25-4.29), a contribution for
@@ -1129,6 +1140,7 @@ class RigidContact:
         node_gap, law = self._law(proj, slipped)
         pressure, shear = law[0], law[1]
         traction = (pts.hats @ pressure) * proj.normal + (pts.hats @ shear) * proj.tangent
+        _check_finite_traction(traction, pts.X, self.name)
         f = pts.G.T @ (-(pts.weights * traction)).T.ravel()
         Bn = _directional(pts.G, proj.normal)
         K = _rigid_tangent(pts, proj, Bn, slipped, law, self.omega_n, self.omega_t, self.mu)

@@ -29,9 +29,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Hardening", "perfect", "linear", "swift", "J2Material", "MaterialState"]
+__all__ = ["Hardening", "perfect", "linear", "swift", "J2Material", "MaterialState",
+           "ReturnMapError"]
 
 I3 = np.eye(3)
+
+
+class ReturnMapError(RuntimeError):
+    """The return map failed at some points (``points``: their indices)."""
+
+    def __init__(self, message, points):
+        super().__init__(message)
+        self.points = points
 
 
 @dataclass(frozen=True)
@@ -193,8 +202,11 @@ class J2Material:
             sy, _ = self.hardening(alpha_n)
             plastic = q_trial - sy > tol * sy
             if np.any(plastic):
-                dgamma[plastic], H[plastic] = self._consistency(
-                    q_trial[plastic], alpha_n[plastic], tol, maxiter)
+                try:
+                    dgamma[plastic], H[plastic] = self._consistency(
+                        q_trial[plastic], alpha_n[plastic], tol, maxiter)
+                except ReturnMapError as err:
+                    raise ReturnMapError(str(err), np.flatnonzero(plastic)[err.points])
         with np.errstate(invalid="ignore", divide="ignore"):
             factor = np.where(dgamma > 0, 1.0 - 3.0 * G * dgamma / q_trial, 1.0)
         eps = vol[:, None] / 3.0 + factor[:, None] * dev
@@ -213,8 +225,9 @@ class J2Material:
             if np.all(np.abs(f) <= tol * q_trial):
                 break
         else:
-            raise RuntimeError("plastic return map did not converge "
-                               f"(largest yield residual {np.abs(f).max():.3e})")
+            bad = np.flatnonzero(~(np.abs(f) <= tol * q_trial))
+            raise ReturnMapError("the plastic return map did not converge (largest yield "
+                                 f"residual {np.abs(f[bad]).max():.3e})", bad)
         _, H = self.hardening(alpha_n + dgamma)
         return dgamma, H
 

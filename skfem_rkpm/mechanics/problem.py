@@ -19,13 +19,22 @@ import numpy as np
 
 from ..assembly import Assembler
 from .kinematics import deformation_gradient, entries, from_entries
-from .materials import MaterialState
+from .materials import MaterialState, ReturnMapError
 
-__all__ = ["InvertedElementError", "Evaluation", "SolidProblem"]
+__all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
 
 
 class InvertedElementError(RuntimeError):
     """det F ≤ 0 at quadrature points: the discretization has inverted."""
+
+    def __init__(self, message, points):
+        super().__init__(message)
+        self.points = points
+
+
+class NonFiniteError(RuntimeError):
+    """NaN or inf in a computed quantity; ``points`` are the flat indices of
+    the quadrature points where it appears."""
 
     def __init__(self, message, points):
         super().__init__(message)
@@ -94,24 +103,47 @@ class SolidProblem:
         """
         state = self.state if state is None else state
         F = deformation_gradient(self.assembler.gradient(d), self.model)
+        self._check_finite(F, "the deformation gradient F")
         J = np.linalg.det(F)
         bad = np.flatnonzero(~(J > 0))
         if bad.size:
-            x = np.asarray(self.basis.global_coordinates()).reshape(
-                len(self.basis.global_coordinates()), -1)[:, bad[0]]
-            cell, qp = np.divmod(bad[0], self.shape[1])
             raise InvertedElementError(
                 f"det F = {J[bad[0]]:.3g} <= 0 at {bad.size} quadrature points; "
-                f"first in cell {cell} (point {qp}) at X = "
-                f"({', '.join(f'{v:.4g}' for v in x)})", bad)
+                f"first {self._where(bad[0])}", bad)
         if self.locking == "fbar":
             return self._evaluate_fbar(F, J, state, tangent)
-        P, tau, new_state, A = self.material.update(F, state, tangent=tangent,
-                                                    entries=self.entries)
+        P, tau, new_state, A = self._update(F, state, tangent)
         P_ext, A_ext = from_entries(self._at_entries(P), A, self.model, self.shape)
         f_int = self.assembler.linear(P_ext)
         K = self._tangent_matrix(A_ext) if tangent else None
         return Evaluation(f_int, K, F, P, tau, new_state)
+
+    def _update(self, F, state, tangent):
+        """``material.update`` with failures named by quadrature point."""
+        try:
+            P, tau, new_state, A = self.material.update(F, state, tangent=tangent,
+                                                        entries=self.entries)
+        except ReturnMapError as err:
+            raise ReturnMapError(f"{err} at {len(err.points)} quadrature points; first "
+                                 f"{self._where(err.points[0])}", err.points) from None
+        self._check_finite(P, "the stress P (return map)")
+        return P, tau, new_state, A
+
+    def _where(self, point):
+        """``cell c (point q) at X = (...)`` for a flat quadrature point index."""
+        X = np.asarray(self.basis.global_coordinates())
+        x = X.reshape(len(X), -1)[:, point]
+        cell, qp = np.divmod(point, self.shape[1])
+        return f"in cell {cell} (point {qp}) at X = ({', '.join(f'{v:.4g}' for v in x)})"
+
+    def _check_finite(self, values, what):
+        """Raise :class:`NonFiniteError` naming the first quadrature point
+        where ``values`` (leading axis: points) has NaN or inf."""
+        finite = np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+        if not finite.all():
+            bad = np.flatnonzero(~finite)
+            raise NonFiniteError(f"{what} is not finite at {bad.size} quadrature points; "
+                                 f"first {self._where(bad[0])}", bad)
 
     def _evaluate_fbar(self, F, J, state, tangent):
         """F-bar: ``F̄ = F + (β^{1/n} - 1) F_M`` with ``β = J̄_e / J``.
@@ -140,8 +172,7 @@ class SolidProblem:
         beta = Jbar / J
         s, gamma = beta ** (1.0 / n), beta ** (1.0 / n - 1.0)
         Fbar = F + (s - 1.0)[:, None, None] * FM
-        Pbar, taubar, new_state, A = self.material.update(Fbar, state, tangent=tangent,
-                                                          entries=self.entries)
+        Pbar, taubar, new_state, A = self._update(Fbar, state, tangent)
         P = gamma[:, None, None] * Pbar
         tau = (J / Jbar)[:, None, None] * taubar  # J σ with σ the Cauchy stress of F̄
         if not tangent:

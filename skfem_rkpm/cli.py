@@ -2,6 +2,8 @@
 
     skfem-rkpm scenes
     skfem-rkpm run ring [--method rkpm|fem] [--set key=value ...] [--out DIR] [--resume]
+                        [--solver NAME]
+    mpiexec -n 2 skfem-rkpm run ring --solver petsc
     skfem-rkpm compare ring [--set key=value ...] [--out DIR]
     skfem-rkpm sweep ring --vary key=v1,v2,... [--vary ...] [--set key=value ...]
                [--method rkpm|fem] [--scheduler ADDRESS] [--workers N] [--out DIR]
@@ -13,6 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from .distributed import is_root, world
+from .linsolve import BACKENDS
 from .scene import SceneError, builtin_scenes, load_scene
 
 __all__ = ["main"]
@@ -35,16 +39,23 @@ def _run_one(path, settings, method, out, resume, quiet):
 
     scene = load_scene(path, settings)
     sim = build(scene, method)
-    out.mkdir(parents=True, exist_ok=True)
-    print(f"{scene['model']['title'] or path.stem}: {sim.method}, {sim.basis.N} dofs, "
-          f"{scene['steps']['count']} steps -> {out}")
-    result = run(sim, out, progress=not quiet, resume=resume)
-    if scene["output"]["figures"] and result.history:
+    root = is_root()  # under mpiexec only rank 0 writes and prints
+    ranks = world()[1]
+    if root:
+        out.mkdir(parents=True, exist_ok=True)
+        print(f"{scene['model']['title'] or path.stem}: {sim.method}, {sim.basis.N} dofs, "
+              f"{scene['steps']['count']} steps -> {out}")
+        if ranks > 1 and not scene["steps"]["solver"].startswith("petsc"):
+            print(f"note: {ranks} MPI ranks, but the solver {scene['steps']['solver']!r} is "
+                  f"not distributed: every rank repeats the whole run (use --solver petsc)")
+    result = run(sim, out, progress=root and not quiet, resume=resume)
+    if root and scene["output"]["figures"] and result.history:
         save_run_figures(sim, result, out)
     iterations = sum(r.iterations for r in result.history)
     seconds = sum(r.seconds for r in result.history)
-    print(f"{result.message}: {len(result.history)} steps, {iterations} Newton "
-          f"iterations, {seconds:.1f} s")
+    if root:
+        print(f"{result.message}: {len(result.history)} steps, {iterations} Newton "
+              f"iterations, {seconds:.1f} s")
     return sim, result
 
 
@@ -106,9 +117,10 @@ def main(argv=None):
             p.add_argument("--method", choices=("rkpm", "fem"))
             p.add_argument("--resume", action="store_true",
                            help="continue from the last finished step in --out")
-            p.add_argument("--solver", choices=("auto", "dense", "superlu", "pardiso",
-                                                "cholmod", "amg"),
-                           help="linear solver (default: the scene's steps.solver, auto)")
+            p.add_argument("--solver", choices=("auto", *BACKENDS),
+                           help="linear solver (default: the scene's steps.solver, auto); "
+                                "petsc and petsc-gamg distribute the solve over the ranks "
+                                "of `mpiexec -n P skfem-rkpm run ...`")
         p.set_defaults(func=func)
     p = sub.add_parser("sweep", help="run every combination of scene values on "
                                      "dask.distributed (pip install skfem-rkpm[dask])")

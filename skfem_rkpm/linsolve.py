@@ -36,8 +36,13 @@ Backends (``make_solver(name)``):
     as the preconditioner of CG (symmetric) or GMRES (non-symmetric),
     iterated to a relative residual of ``rtol`` (1e-12).  Symmetric positive
     definite matrices; the hierarchy is rebuilt at every ``factor``.
+``"petsc"``, ``"petsc-gamg"``
+    PETSc KSP through ``petsc4py`` (``pip install skfem-rkpm[petsc]``, a
+    source build): MUMPS LU, or GAMG + CG/GMRES (positive definite only),
+    distributed over the ranks of a run started with ``mpiexec``; see
+    :mod:`skfem_rkpm.distributed`.
 ``"auto"``
-    Picks one of the above at every ``factor`` from the size, the symmetry
+    Picks one of the above (never PETSc) at every ``factor`` from the size, the symmetry
     and what is installed; :meth:`Solver.describe` says what it picked.
 
 SPD-only backends (``cholmod``, ``amg``) cannot factor the symmetric
@@ -74,6 +79,8 @@ BACKENDS = {
     "pardiso": ("pypardiso", "pardiso"),
     "cholmod": ("sksparse.cholmod", "cholmod"),
     "amg": ("pyamg", "amg"),
+    "petsc": ("petsc4py", "petsc"),
+    "petsc-gamg": ("petsc4py", "petsc"),
 }
 
 _INSTALL_NOTES = {
@@ -81,7 +88,12 @@ _INSTALL_NOTES = {
                "`apt-get install libsuitesparse-dev`; on Debian 12 pin "
                "`scikit-sparse==0.4.16`)",
     "pardiso": " (installs MKL, about 1 GB)",
+    "petsc": " (petsc4py has no wheel: pip builds PETSc from source, about 20 minutes; "
+             "for MPI put an MPI compiler wrapper (mpicc) on PATH before the build, and "
+             "for MUMPS pass a MUMPS installation in PETSC_CONFIGURE_OPTIONS; see "
+             "docs/performance.md, \"PETSc and MPI\")",
 }
+_INSTALL_NOTES["petsc-gamg"] = _INSTALL_NOTES["petsc"]
 
 
 class BackendUnavailable(ImportError):
@@ -509,15 +521,19 @@ def make_solver(name="auto", symmetric=None, **options):
     Parameters
     ----------
     name : str or Solver
-        ``"auto"``, ``"dense"``, ``"superlu"``, ``"pardiso"``, ``"cholmod"``
-        or ``"amg"``; a :class:`Solver` is returned as it is.  ``None`` means
-        ``"auto"``.
+        ``"auto"`` or one of :data:`BACKENDS` (``"dense"``, ``"superlu"``,
+        ``"pardiso"``, ``"cholmod"``, ``"amg"``, ``"petsc"``,
+        ``"petsc-gamg"``); a :class:`Solver` is returned as it is.  ``None``
+        means ``"auto"``.
     symmetric : bool, optional
         What the caller knows of the matrices to come: ``False`` for
         frictional contact tangents, ``True`` for symmetric ones; ``None``
         lets ``auto`` check when it matters.
     **options
-        Backend options (``amg``: ``rtol``, ``maxiter``, ``near_nullspace``).
+        Backend options (``amg``: ``rtol``, ``maxiter``, ``near_nullspace``;
+        ``petsc``, ``petsc-gamg``: ``points``, the dof locations used to
+        partition the rows among MPI ranks, and ``rtol``, ``maxiter`` for
+        GAMG).
 
     Raises
     ------
@@ -533,7 +549,7 @@ def make_solver(name="auto", symmetric=None, **options):
     if name not in _CLASSES:
         raise ValueError(f"unknown linear solver {name!r}; choose one of "
                          f"auto, {', '.join(_CLASSES)}")
-    if symmetric is False and _CLASSES[name].spd_only and name != "amg":
+    if symmetric is False and _CLASSES[name].spd_only and name not in ("amg", "petsc-gamg"):
         raise ValueError(f"the linear solver {name!r} needs symmetric positive definite "
                          f"matrices, and these are declared non-symmetric; use "
                          f"'superlu', 'pardiso' or 'auto'")
@@ -630,3 +646,22 @@ def _factor(solver, A, spd):
         solver.factor(A, spd=spd)
     else:
         solver.factor(A)
+
+
+# the PETSc backends live in .distributed (which imports Solver from here)
+from .distributed import PETScGAMG, PETScLU  # noqa: E402
+
+_CLASSES.update({"petsc": PETScLU, "petsc-gamg": PETScGAMG})
+
+
+def _register_scene_choices():
+    """Let the scene key ``steps.solver`` accept every backend of :data:`BACKENDS`."""
+    import dataclasses
+
+    from . import scene
+
+    spec = scene.SCHEMA["steps"]["solver"]
+    scene.SCHEMA["steps"]["solver"] = dataclasses.replace(spec, choices=("auto", *BACKENDS))
+
+
+_register_scene_choices()

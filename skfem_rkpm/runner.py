@@ -6,7 +6,8 @@
 tools); :func:`run` drives them with :func:`~skfem_rkpm.solver.newton_steps`
 and writes, after every converged step, ``history.csv``, ``fields.xdmf``
 and a checkpoint, so an interrupted run keeps everything it finished and
-``resume=True`` continues from the last step.
+``resume=True`` continues from the last step.  Under ``mpiexec`` every rank
+runs the same simulation and only rank 0 writes.
 """
 
 import sys
@@ -20,13 +21,18 @@ from skfem import (Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2
 from skfem.helpers import dot
 
 from .basis import RKBasis
+from .distributed import is_root
 from .elasticity import facet_basis
 from .io import FieldWriter, write_history
+from .linsolve import make_solver
 from .mechanics.problem import SolidProblem
 from .scene import SceneError, components, material_from, mesh_from, spacing_radius
 from .solver import Prescribed, newton_steps
 
 __all__ = ["Simulation", "build", "run"]
+
+#: linear solvers that partition the rows by the dof locations
+DISTRIBUTED = ("petsc", "petsc-gamg")
 
 ELEMENTS = {"quad1": ElementQuad1, "quad2": ElementQuad2, "tri1": ElementTriP1,
             "tri2": ElementTriP2}
@@ -184,12 +190,15 @@ def run(sim, out=None, progress=True, resume=False, log=None):
     probes = _point_probes(sim.basis, sim.points)
     d0, start, history_rows, past = None, 0.0, [], []
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
         checkpoint = out / "checkpoint.pkl"
-        if resume:
+        if resume:  # every MPI rank reads the checkpoint
             if not checkpoint.exists():
                 raise FileNotFoundError(f"{checkpoint}: nothing to resume")
             d0, start, past, history_rows = _load_checkpoint(sim, checkpoint)
+    if not is_root():  # under mpiexec only rank 0 writes
+        out = None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
     fields = None
     if out is not None and output["fields"]:
         name = "fields.xdmf" if start == 0 else f"fields-from-t{start:.4f}.xdmf"
@@ -217,7 +226,7 @@ def run(sim, out=None, progress=True, resume=False, log=None):
                               max_iterations=steps["max_iterations"],
                               max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
                               contributions=sim.tools, start=start, on_step=on_step,
-                              linear_solver=steps["solver"])
+                              linear_solver=_linear_solver(sim))
     finally:
         bar.close()
         if fields is not None:
@@ -227,6 +236,15 @@ def run(sim, out=None, progress=True, resume=False, log=None):
     if out is not None:
         (out / "status.txt").write_text(result.message + "\n")
     return result
+
+
+def _linear_solver(sim):
+    """The scene's solver; the distributed ones get the dof locations to
+    partition the particles among the MPI ranks."""
+    name = sim.scene["steps"]["solver"]
+    if name in DISTRIBUTED:
+        return make_solver(name, points=sim.basis.doflocs)
+    return name
 
 
 def _save_checkpoint(sim, path, d, t, history, rows):

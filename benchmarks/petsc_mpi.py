@@ -16,11 +16,11 @@ box supports of 3 particle spacings, 16 Gauss points per cell, friction
   9.9 and 98 times the paper's 176): the first ``--steps`` load steps of
   the 100 (default 1), run with ``superlu`` on one process, and with
   ``petsc`` under ``mpiexec -n 1`` and ``mpiexec -n 2``.  Reported: Newton
-  iterations, the seconds per linear solve (analysis + factorization +
+  iterations (and cut-backs), the seconds per linear solve (analysis + factorization +
   solves with refinement, over the factorizations, on rank 0), the wall
   time of the steps, and the largest difference of the final
-  displacements and platen forces between the runs, relative to their
-  largest value.
+  displacements and the final platen force between the runs, relative to
+  their largest value.
 
 Only the linear solve is distributed: assembly and material updates are
 replicated on every rank, so the whole-run time cannot fall by more than
@@ -132,10 +132,11 @@ def worker(args):
     stats = solver.stats
     seconds = stats["analyze_seconds"] + stats["factor_seconds"] + stats["solve_seconds"]
     if is_root():
-        force = np.array([r.reactions[sim.tools[0].name] for r in result.history])
+        force = np.atleast_1d(result.history[-1].reactions[sim.tools[0].name])
         record = dict(cells=args.cells, particles=sim.basis.N // 2, dofs=sim.basis.N,
                       solver=solver.describe(), ranks=world()[1], build=built, wall=wall,
                       iterations=sum(r.iterations for r in result.history),
+                      records=len(result.history),
                       factorizations=stats["factorizations"], solve_seconds=seconds,
                       per_solve=seconds / max(stats["factorizations"], 1),
                       partition=[int(n) for n in getattr(solver, "partition", [])])
@@ -185,11 +186,13 @@ def refined(args):
                 x = data["result"]
                 dd = np.abs(x[:n] - one[:n]).max() / np.abs(one[:n]).max()
                 df = np.abs(x[n:] - one[n:]).max() / np.abs(one[n:]).max()
+                cuts = f" ({data['records'] - args.steps} cut)" if data["records"] > args.steps \
+                    else ""
                 part = f" ({'+'.join(map(str, data['partition']))} rows)" \
                     if len(data["partition"]) > 1 else ""
                 print(f"| {cells} | {data['particles']:,} | {data['dofs']:,} | "
                       f"{data['solver']}{part} | {data['ranks'] if data['ranks'] else 1} | "
-                      f"{data['iterations']} | {data['per_solve']:.3f} | {data['wall']:.1f} | "
+                      f"{data['iterations']}{cuts} | {data['per_solve']:.3f} | {data['wall']:.1f} | "
                       f"{data['process']:.1f} | d {dd:.1e}, force {df:.1e} |", flush=True)
 
 

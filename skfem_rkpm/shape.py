@@ -18,8 +18,17 @@ All work is vectorized over the (point, node) pairs, stored in CSR order
 blocks; inside a block the pair arrays are laid out (component, pair) and
 the small moment matrices (m, m, point), so that every operation runs over
 long contiguous rows.
+
+An optional compiled kernel (:mod:`skfem_rkpm._shape_numba`, needs numba:
+``pip install skfem-rkpm[fast]``) builds the same table, with a cell-list
+neighbour search instead of KD-trees; ``backend`` (or the environment
+variable ``SKFEM_RKPM_SHAPE_BACKEND``) chooses between the two.  The numpy
+path stays the reference: it handles every case, and every error is
+reported by it.
 """
 
+import importlib
+import os
 from dataclasses import dataclass
 from itertools import combinations_with_replacement
 
@@ -27,9 +36,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .kernels import get_kernel
+from .kernels import KERNELS, get_kernel
 
 __all__ = [
+    "BackendUnavailableError",
     "ShapeTable",
     "SingularMomentError",
     "monomial_exponents",
@@ -41,6 +51,17 @@ __all__ = [
 RCOND_MIN = 1e-10
 #: points per block in the batched solve (keeps the pair arrays in cache)
 POINTS_PER_BLOCK = 4096
+#: environment variable with the default backend ("auto", "numpy", "numba")
+BACKEND_VARIABLE = "SKFEM_RKPM_SHAPE_BACKEND"
+#: "auto" loads the compiled kernel only for a call with at least this many
+#: evaluation points (loading numba and the cached machine code costs about
+#: as much as the numpy path on this many points); once loaded, it is used
+#: for every call
+AUTO_MIN_POINTS = 20_000
+
+
+class BackendUnavailableError(ImportError):
+    """The requested shape-function backend cannot be imported."""
 
 
 class SingularMomentError(ValueError):
@@ -342,6 +363,7 @@ def rk_shape_functions(
     gradients=True,
     dilation=None,
     rcond_min=RCOND_MIN,
+    backend=None,
 ):
     """Reproducing kernel shape functions Ψ_I(X) and ∂Ψ_I/∂X, Eq. (3.16)-(3.19).
 
@@ -366,6 +388,16 @@ def rk_shape_functions(
         phrase the error message in the user's terms.
     rcond_min : float
         Smallest accepted reciprocal condition number of ``M(X)``.
+    backend : {"auto", "numpy", "numba"}, optional
+        ``"numpy"``: the vectorized numpy/scipy path; ``"numba"``: the
+        compiled kernel (needs numba, ``pip install skfem-rkpm[fast]``; cubic
+        and quartic kernels, 1 to 3 dimensions); ``"auto"``: the compiled
+        kernel when numba is installed, the case is covered and either the
+        kernel is already loaded or the call has at least
+        :data:`AUTO_MIN_POINTS` points, else numpy.  Both give the same
+        table (the same pairs in the same order, values equal to round-off).
+        Default: the environment variable ``SKFEM_RKPM_SHAPE_BACKEND``, or
+        ``"auto"``.
 
     Returns
     -------
@@ -377,6 +409,8 @@ def rk_shape_functions(
         If a point is covered by too few particles or their arrangement makes
         ``M(X)`` singular; the message names the point, how many particles
         cover it and the smallest support that would work.
+    BackendUnavailableError
+        If ``backend="numba"`` and numba is not installed.
     """
     x = coordinates(x, "evaluation point")
     nodes = coordinates(nodes, "particle")
@@ -405,12 +439,89 @@ def rk_shape_functions(
         raise ValueError(f"support must be 'radial' or 'box', not {support!r}")
     window = get_kernel(kernel)
     exps = monomial_exponents(dim, order)
+    compiled = _compiled_backend(backend, window, dim, npoints)
+    if compiled is not None:
+        table = _build_compiled(compiled, x, nodes, radius, exps, window,
+                                support, gradients, rcond_min)
+        if table is not None:
+            return table
+        # a point is not covered well enough: the numpy path reports it
     table, bad, why = _build(x, nodes, radius, exps, window, support,
                              gradients, rcond_min)
     if bad.size:
         _raise_singular(bad, np.diff(table.indptr), x, nodes, radius, order,
                         window, support, dilation, rcond_min, why)
     return table
+
+
+def _load_compiled():
+    """The compiled kernel module; ImportError if numba is missing."""
+    return importlib.import_module("skfem_rkpm._shape_numba")
+
+
+#: the compiled kernel once a call has used it (then "auto" uses it always)
+_loaded = None
+
+
+def _compiled_backend(backend, window, dim, npoints):
+    """The compiled kernel module if ``backend`` selects it, else None."""
+    global _loaded
+    if backend is None:
+        backend = os.environ.get(BACKEND_VARIABLE, "").strip() or "auto"
+    if backend not in ("auto", "numpy", "numba"):
+        raise ValueError(f"backend must be 'auto', 'numpy' or 'numba', not "
+                         f"{backend!r} (from the argument or {BACKEND_VARIABLE})")
+    if backend == "numpy":
+        return None
+    covered = 1 <= dim <= 3 and _kernel_name(window) is not None
+    if backend == "numba":
+        try:
+            module = _load_compiled()
+        except ImportError as err:
+            raise BackendUnavailableError(
+                "the 'numba' backend of rk_shape_functions needs numba: "
+                "pip install skfem-rkpm[fast] (or pip install numba), or use "
+                f"backend='numpy' ({err})") from err
+        if not covered:
+            raise ValueError(
+                f"the 'numba' backend covers the kernels {sorted(KERNELS)} in 1 to "
+                f"3 dimensions, not kernel {window!r} in {dim}D; use "
+                "backend='numpy' or 'auto'")
+        _loaded = module
+        return module
+    if not covered:
+        return None
+    if _loaded is None and npoints >= AUTO_MIN_POINTS:
+        try:
+            _loaded = _load_compiled()
+        except ImportError:
+            _loaded = False  # numba is not installed: numpy from now on
+    return _loaded or None
+
+
+def _kernel_name(window):
+    """Name of a built-in kernel function, None for any other callable."""
+    for name, function in KERNELS.items():
+        if window is function:
+            return name
+    return None
+
+
+def _build_compiled(module, x, nodes, radius, exps, window, support, gradients,
+                    rcond_min):
+    """The table from the compiled kernel, or None if a point fails.
+
+    None also when a moment matrix comes within a factor 2 of ``rcond_min``:
+    the sums run in another order than numpy's, so near the limit only the
+    numpy path decides (and reports) which points fail.
+    """
+    build, lowered = _monomial_recurrences(exps)
+    indptr, indices, values, grads, rcond = module.build(
+        x, nodes, radius, build, lowered, _kernel_name(window),
+        support, gradients)
+    if values is None or not np.all(rcond >= 2.0 * rcond_min):
+        return None
+    return ShapeTable(indptr, indices, values, grads, nodes.shape[1])
 
 
 def coordinates(x, what):

@@ -17,8 +17,9 @@ writes, to ``--out`` (default ``results/ring-study``):
   Newton iterations, wall time);
 * one output folder per run (``history.csv``, ``status.txt``).
 
-Run:  python examples/ring_compression.py [--methods rkpm fem] [--steps 100]
-      [--set key=value ...] [--out DIR]                      (~3 minutes)
+Run:  python examples/ring_compression.py [--scene ring|ring_refined]
+      [--methods rkpm fem] [--steps 100] [--set key=value ...] [--out DIR]
+                                                             (~3 minutes)
 """
 
 import argparse
@@ -41,9 +42,9 @@ HEIGHT, INNER_RADIUS = 20.0, 30.0  # quarter model: mid-plane to contact face
 STYLE = {"rkpm": "-", "fem": "--"}
 
 
-def ring_run(friction, method, steps, settings, out):
-    """One run of the built-in ring scene; returns (simulation, result)."""
-    scene = load_scene(builtin_scenes()["ring"],
+def ring_run(friction, method, steps, settings, out, name="ring"):
+    """One run of a built-in ring scene; returns (simulation, result)."""
+    scene = load_scene(builtin_scenes()[name],
                        [f"tools.platen.friction={friction}", f"steps.count={steps}",
                         "output.fields=false", "output.figures=false", *settings])
     sim = build(scene, method)
@@ -145,6 +146,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--methods", nargs="+", choices=("rkpm", "fem"),
                         default=["rkpm", "fem"])
+    parser.add_argument("--scene", choices=("ring", "ring_refined"), default="ring",
+                        help="ring_refined: the corner-refined gmsh particles (Fig. 16-17)")
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("--set", action="append", default=[])
     parser.add_argument("--out", type=Path, default=Path("results/ring-study"))
@@ -155,7 +158,7 @@ def main():
     for method in args.methods:
         for friction in FRICTIONS:
             runs[method, friction] = ring_run(friction, method, args.steps, args.set,
-                                              args.out)
+                                              args.out, args.scene)
             print(summary_table({(method, friction): runs[method, friction]})
                   .splitlines()[-1], flush=True)
 

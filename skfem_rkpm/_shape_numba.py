@@ -115,62 +115,40 @@ def _find_pairs(x, nodes, radius, box, axes):
     for i in range(nnodes):
         order[fill[cell[i]]] = i
         fill[cell[i]] += 1
-    xs = np.empty((nnodes, dim))
-    rs = np.empty(nnodes)
-    # squared radii with a margin: r² above it means sqrt(r²) >= a for sure
-    rs2 = np.empty(nnodes)
+    # the particles in cell order, one row each: coordinates, radius,
+    # squared radius with a margin (r² above it means sqrt(r²) >= a for
+    # sure), index; one cache line holds all a candidate needs
+    packed = np.empty((nnodes, dim + 3))
     for s in range(nnodes):
+        i = order[s]
         for k in range(dim):
-            xs[s, k] = nodes[order[s], k]
-        rs[s] = radius[order[s]]
-        rs2[s] = rs[s] * rs[s] * (1.0 + 1e-12)
+            packed[s, k] = nodes[i, k]
+        packed[s, dim] = radius[i]
+        packed[s, dim + 1] = radius[i] * radius[i] * (1.0 + 1e-12)
+        packed[s, dim + 2] = i
 
-    # visit the points cell by cell (counting sort by the cell around
-    # them; points out of reach of every particle first), so that the
-    # particles of consecutive points are near in memory
-    pcell = np.empty(npoints, np.int64)
-    pstart = np.zeros(ncells + 2, np.int64)
-    for q in range(npoints):
-        c = 0
-        for k in range(3):
-            ck = 0
-            if k < dim:
-                f = (x[q, k] - lo[k]) / bs
-                if not (f > -2.0 and f < nb[k] + 1.0):
-                    c = -1  # far outside (or NaN): no cell in reach
-                    break
-                ck = min(max(np.int64(np.floor(f)), 0), nb[k] - 1)
-            c = c * nb[k] + ck
-        pcell[q] = c
-        pstart[c + 2] += 1
-    for c in range(ncells + 1):
-        pstart[c + 1] += pstart[c]
-    visit = np.empty(npoints, np.int64)
-    for q in range(npoints):
-        visit[pstart[pcell[q] + 1]] = q
-        pstart[pcell[q] + 1] += 1
-
-    # pairs in visiting order, then copied into CSR order
+    indptr = np.empty(npoints + 1, np.int64)
+    indptr[0] = 0
     capacity = max(16 * npoints, 1024)
-    buffer = np.empty(capacity, np.int64)
-    offset = np.empty(npoints, np.int64)
-    count = np.empty(npoints, np.int64)
+    indices = np.empty(capacity, np.int64)
     found = np.empty(nnodes, np.int64)
     first = np.zeros(3, np.int64)
     last = np.zeros(3, np.int64)
     d = np.zeros(3)
     n = 0
-    for v in range(npoints):
-        q = visit[v]
-        empty = pcell[q] < 0
-        if not empty:
-            for k in range(dim):
-                ck = np.int64(np.floor((x[q, k] - lo[k]) / bs))
-                first[k] = max(ck - 1, 0)
-                last[k] = min(ck + 1, nb[k] - 1)
-                if first[k] > last[k]:
-                    empty = True
+    for q in range(npoints):
         cnt = 0
+        empty = False
+        for k in range(dim):
+            f = (x[q, k] - lo[k]) / bs
+            if not (f > -2.0 and f < nb[k] + 1.0):
+                empty = True  # far outside (or NaN): no cell in reach
+                break
+            ck = np.int64(np.floor(f))
+            first[k] = max(ck - 1, 0)
+            last[k] = min(ck + 1, nb[k] - 1)
+            if first[k] > last[k]:
+                empty = True
         if not empty:
             for c0 in range(first[0], last[0] + 1):
                 for c1 in range(first[1], last[1] + 1):
@@ -179,7 +157,7 @@ def _find_pairs(x, nodes, radius, box, axes):
                         c = base + c2
                         for s in range(start[c], start[c + 1]):
                             for k in range(dim):
-                                d[k] = x[q, k] - xs[s, k]
+                                d[k] = x[q, k] - packed[s, k]
                             if box:
                                 r = 0.0
                                 for k in range(dim):
@@ -190,12 +168,12 @@ def _find_pairs(x, nodes, radius, box, axes):
                                 r2 = 0.0
                                 for k in range(dim):
                                     r2 += d[k] * d[k]
-                                if r2 > rs2[s]:
+                                if r2 > packed[s, dim + 1]:
                                     continue
                                 r = np.sqrt(r2)
-                            if r < rs[s]:
+                            if r < packed[s, dim]:
                                 # insertion into the sorted list of the point
-                                i = order[s]
+                                i = np.int64(packed[s, dim + 2])
                                 j = cnt
                                 while j > 0 and found[j - 1] > i:
                                     found[j] = found[j - 1]
@@ -205,25 +183,17 @@ def _find_pairs(x, nodes, radius, box, axes):
         if n + cnt > capacity:
             capacity = max(2 * capacity, n + cnt)
             grown = np.empty(capacity, np.int64)
-            grown[:n] = buffer[:n]
-            buffer = grown
+            grown[:n] = indices[:n]
+            indices = grown
         for j in range(cnt):
-            buffer[n + j] = found[j]
-        offset[q] = n
-        count[q] = cnt
+            indices[n + j] = found[j]
         n += cnt
-    indptr = np.empty(npoints + 1, np.int64)
-    indptr[0] = 0
-    for q in range(npoints):
-        indptr[q + 1] = indptr[q] + count[q]
-    indices = np.empty(n, np.int64)
-    for q in range(npoints):
-        indices[indptr[q]:indptr[q + 1]] = buffer[offset[q]:offset[q] + count[q]]
-    return indptr, indices
+        indptr[q + 1] = n
+    return indptr, indices[:n].copy()
 
 
 @njit(**_OPTIONS)
-def _fill(x, nodes, radius, indptr, indices, kcode, box, axes, basis, build,
+def _fill(x, particles, indptr, indices, kcode, box, axes, basis, build,
           lptr, lj, le, llow, gradients, values, grads, rcond):
     """Values, gradients and reciprocal condition numbers per point.
 
@@ -231,7 +201,8 @@ def _fill(x, nodes, radius, indptr, indices, kcode, box, axes, basis, build,
     :func:`skfem_rkpm.shape._build` (``_kernel_weights``, ``_monomials``,
     ``_moment_matrices``, ``_batched_inverse``, ``_rcond``,
     ``_moment_solve``), one point at a time.  The points are taken in their
-    own order: the result is written as it is laid out in memory.
+    own order: the result is written as it is laid out in memory.  Row ``I``
+    of ``particles`` is ``X_I`` followed by ``a_I``.
 
     ``axes = tuple(range(dim))`` and ``basis = tuple(range(m))``: their
     lengths are constants of the compiled code (one specialization per
@@ -255,20 +226,20 @@ def _fill(x, nodes, radius, indptr, indices, kcode, box, axes, basis, build,
     dpk = np.empty(3)
     A = np.empty((m, 2 * m))
     b = np.empty(m)
-    v = np.empty(m)
+    v = np.empty((dim, m))
     V = np.empty(m)
-    bk = np.empty(m)
+    bk = np.empty((dim, m))
     for q in range(npoints):
         lo = indptr[q]
         cnt = indptr[q + 1] - lo
         # kernel and its gradient (_kernel_weights); s = largest support
-        s = radius[indices[lo]]
+        s = particles[indices[lo], dim]
         for p in range(cnt):
             node = indices[lo + p]
-            a = radius[node]
+            a = particles[node, dim]
             s = max(s, a)
             for k in range(dim):
-                d[k] = x[q, k] - nodes[node, k]
+                d[k] = x[q, k] - particles[node, k]
             if box:
                 for k in range(dim):
                     pk[k], dpk[k] = _kernel(abs(d[k]) / a, kcode)
@@ -303,16 +274,19 @@ def _fill(x, nodes, radius, indptr, indices, kcode, box, axes, basis, build,
             H[p, 0] = 1.0
             for j in range(1, m):
                 H[p, j] = H[p, build[j, 2]] * (diff[p, build[j, 1]] * inv_s)
-        # moment matrix (_moment_matrices), upper triangle mirrored
+        # moment matrix (_moment_matrices): the upper triangle summed over
+        # the pairs in order (all entries at once), then mirrored
         for i in range(m):
-            for j in range(i, m):
-                acc = 0.0
-                for p in range(cnt):
-                    acc += H[p, i] * (H[p, j] * phi[p])
-                A[i, j] = acc
-                A[j, i] = acc
-            for j in range(m):
-                A[i, m + j] = 1.0 if i == j else 0.0
+            for j in range(2 * m):
+                A[i, j] = 1.0 if j == m + i else 0.0
+        for p in range(cnt):
+            for i in range(m):
+                hi = H[p, i]
+                for j in range(i, m):
+                    A[i, j] += hi * (H[p, j] * phi[p])
+        for i in range(m):
+            for j in range(i + 1, m):
+                A[j, i] = A[i, j]
         # 1-norm of M before the elimination overwrites it (_rcond)
         norm = 0.0
         for j in range(m):
@@ -354,48 +328,38 @@ def _fill(x, nodes, radius, indptr, indices, kcode, box, axes, basis, build,
             values[lo + p] = acc * phi[p]
         if not gradients:
             continue
+        # gradients: t = ∂(H_Iᵀ b)/∂X_k φ_I + H_Iᵀ b ∂φ_I/∂X_k with b fixed,
+        # v = M_,k b summed over the pairs, then b_,k = -M⁻¹ v
         for k in range(dim):
             for j in range(m):
-                v[j] = 0.0
-            for p in range(cnt):
+                v[k, j] = 0.0
+        for p in range(cnt):
+            cphi_s = values[lo + p] * inv_s
+            for k in range(dim):
                 ck = 0.0
                 for t in range(lptr[k], lptr[k + 1]):
                     ck += (le[t] * b[lj[t]]) * H[p, llow[t]]
                 ck *= inv_s
                 tk = ck * phi[p] + c[p] * dphi[p, k]
-                cphi_s = values[lo + p] * inv_s
                 for j in range(m):
                     V[j] = H[p, j] * tk
                 for t in range(lptr[k], lptr[k + 1]):
                     V[lj[t]] += (le[t] * cphi_s) * H[p, llow[t]]
                 for j in range(m):
-                    v[j] += V[j]
+                    v[k, j] += V[j]
                 grads[k, lo + p] = tk
-            # b_,k = -M⁻¹ M_,k b
+        for k in range(dim):
             for i in range(m):
                 acc = 0.0
                 for j in range(m):
-                    acc += A[i, m + j] * v[j]
-                bk[i] = -acc
-            for p in range(cnt):
+                    acc += A[i, m + j] * v[k, j]
+                bk[k, i] = -acc
+        for p in range(cnt):
+            for k in range(dim):
                 acc = 0.0
                 for j in range(m):
-                    acc += H[p, j] * bk[j]
+                    acc += H[p, j] * bk[k, j]
                 grads[k, lo + p] = acc * phi[p] + grads[k, lo + p]
-
-
-def pair_table(x, nodes, radius, support="radial"):
-    """CSR pairs ``(indptr, indices)``, the same as the numpy path.
-
-    ``x`` (dim, npoints) and ``nodes`` (dim, nnodes) as in
-    :func:`~skfem_rkpm.shape.rk_shape_functions`, ``radius`` (nnodes,).
-    """
-    x = np.asarray(x, dtype=float)
-    indptr, indices, _ = find_pairs(
-        np.ascontiguousarray(x.T),
-        np.ascontiguousarray(np.asarray(nodes, dtype=float).T),
-        np.ascontiguousarray(radius, dtype=float), support)
-    return indptr, indices
 
 
 def _recurrences(build, lowered):
@@ -432,7 +396,7 @@ def build(x, nodes, radius, build, lowered, kernel, support, gradients):
     values = np.empty(npairs)
     grads = np.empty((dim, npairs) if gradients else (dim, 0))
     rcond = np.empty(npoints)
-    _fill(xt, nt, radius, indptr, indices, KERNEL_CODES[kernel],
+    _fill(xt, np.column_stack([nt, radius]), indptr, indices, KERNEL_CODES[kernel],
           SUPPORT_CODES[support] == 1, tuple(range(dim)), tuple(range(m)),
           *_recurrences(build, lowered), gradients, values, grads, rcond)
     return indptr, indices, values, grads if gradients else None, rcond

@@ -84,7 +84,7 @@ def _find_pairs(x, nodes, radius, box, axes):
     cap = 2.0 * nnodes + 8.0
     for k in range(dim):
         bs = max(bs, span[k] / cap)
-    while True:
+    for _ in range(10000):  # bounded: extents are finite (see build)
         total = 1.0
         for k in range(dim):
             total *= np.floor(span[k] / bs) + 1.0
@@ -382,10 +382,16 @@ def build(x, nodes, radius, build, lowered, kernel, support, gradients):
     ``build, lowered`` from :func:`~skfem_rkpm.shape._monomial_recurrences`.
     Returns ``(indptr, indices, values, grads, rcond)``, or ``(indptr,
     indices, None, None, None)`` if a point is covered by fewer than ``m``
-    particles (the numpy path then reports it).
+    particles (the numpy path then reports it), or None if the particles
+    span more than the float range (the numpy path then handles them).
     """
     dim = x.shape[0]
     m = len(build) + 1
+    with np.errstate(over="ignore"):
+        cells_ok = (np.isfinite(np.ptp(nodes, axis=1)).all()
+                    and np.isfinite(radius.max() * (1.0 + 1e-4)))
+    if not cells_ok:
+        return None  # extents beyond the float range: the numpy path
     xt = np.ascontiguousarray(x.T, dtype=float)
     nt = np.ascontiguousarray(nodes.T, dtype=float)
     radius = np.ascontiguousarray(radius, dtype=float)

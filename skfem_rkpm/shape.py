@@ -516,9 +516,11 @@ def _build_compiled(module, x, nodes, radius, exps, window, support, gradients,
     numpy path decides (and reports) which points fail.
     """
     build, lowered = _monomial_recurrences(exps)
-    indptr, indices, values, grads, rcond = module.build(
-        x, nodes, radius, build, lowered, _kernel_name(window),
-        support, gradients)
+    arrays = module.build(x, nodes, radius, build, lowered, _kernel_name(window),
+                          support, gradients)
+    if arrays is None:
+        return None
+    indptr, indices, values, grads, rcond = arrays
     if values is None or not np.all(rcond >= 2.0 * rcond_min):
         return None
     return ShapeTable(indptr, indices, values, grads, nodes.shape[1])

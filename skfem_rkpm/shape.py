@@ -54,10 +54,11 @@ POINTS_PER_BLOCK = 4096
 #: environment variable with the default backend ("auto", "numpy", "numba")
 BACKEND_VARIABLE = "SKFEM_RKPM_SHAPE_BACKEND"
 #: "auto" loads the compiled kernel only for a call with at least this many
-#: evaluation points (loading numba and the cached machine code costs about
-#: as much as the numpy path on this many points); once loaded, it is used
-#: for every call
-AUTO_MIN_POINTS = 20_000
+#: evaluation points: loading numba and the cached machine code takes
+#: 0.3-0.4 s of CPU, which the compiled kernel saves back (1-3 µs per point)
+#: on about this many points (docs/performance.md, "Compiled kernel
+#: (optional)"); once loaded, it is used for every call
+AUTO_MIN_POINTS = 200_000
 
 
 class BackendUnavailableError(ImportError):

@@ -500,7 +500,7 @@ def report(results, results_3d, backends):
                 cells[4 + len([p for p in PARTS if p in r])] = short(r["error"])
             cells += [solve_cell(r["solves"][b]) if b in r.get("solves", {}) else ""
                       for b in backends]
-            cells += [r.get("auto", ""), cell(r.get("peak_mb"), 4), r["load"]]
+            cells += [r.get("auto", ""), f"{r['peak_mb']:.0f}" if "peak_mb" in r else "", r["load"]]
             print("| " + " | ".join(cells) + " |")
         print(f"\n{method}: peak memory of the solve processes (MB; the matrices "
               "loaded before the factorization take the first number)\n")

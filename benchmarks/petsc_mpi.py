@@ -202,7 +202,8 @@ def refined(args):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=20)
-    parser.add_argument("--sizes", type=int, nargs="+", default=[50, 160])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[50, 160],
+                        help="cells in x of the refined rings (none: skip them)")
     parser.add_argument("--steps", type=int, default=1)
     parser.add_argument("--skip-paper", action="store_true")
     parser.add_argument("--no-superlu", action="store_true",
@@ -216,7 +217,8 @@ def main():
         return worker(args)
     if not args.skip_paper:
         paper(args)
-    refined(args)
+    if args.sizes:
+        refined(args)
 
 
 if __name__ == "__main__":

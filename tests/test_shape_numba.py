@@ -135,6 +135,7 @@ def test_auto_and_environment_variable(numba, monkeypatch):
 
 def test_auto_loads_the_kernel_only_for_large_calls(monkeypatch):
     loads = []
+    monkeypatch.delenv(shape.BACKEND_VARIABLE, raising=False)
     monkeypatch.setattr(shape, "_loaded", None)
     monkeypatch.setattr(shape, "_load_compiled", lambda: loads.append(1) or False)
     nodes, h = grid(2, 6)
@@ -148,6 +149,7 @@ def test_auto_loads_the_kernel_only_for_large_calls(monkeypatch):
 
 def test_numba_backend_without_numba_is_a_clear_error(monkeypatch):
     """Simulate an installation without numba."""
+    monkeypatch.delenv(shape.BACKEND_VARIABLE, raising=False)
     monkeypatch.setitem(sys.modules, "numba", None)
     monkeypatch.setitem(sys.modules, "skfem_rkpm._shape_numba", None)
     monkeypatch.setattr(shape, "_loaded", None)

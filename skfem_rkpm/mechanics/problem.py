@@ -127,6 +127,8 @@ class SolidProblem:
             raise ReturnMapError(f"{err} at {len(err.points)} quadrature points; first "
                                  f"{self._where(err.points[0])}", err.points) from None
         self._check_finite(P, "the stress P (return map)")
+        if A is not None:
+            self._check_finite(A, "the consistent tangent A")
         return P, tau, new_state, A
 
     def _where(self, point):

@@ -44,8 +44,9 @@ def has_petsc():
 
 
 needs_petsc = pytest.mark.skipif(
-    not has_petsc(), reason="petsc4py is not installed (pip install skfem-rkpm[petsc], a "
-                            "source build of PETSc: see docs/performance.md)")
+    not has_petsc(), reason="petsc4py is not installed (a source build of PETSc with MPI "
+                            "and MUMPS: bash .ci/run-mpi, or docs/performance.md, "
+                            "\"PETSc and MPI\")")
 
 
 # -- always ------------------------------------------------------------------

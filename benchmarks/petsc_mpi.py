@@ -26,9 +26,11 @@ Only the linear solve is distributed: assembly and material updates are
 replicated on every rank, so the whole-run time cannot fall by more than
 the solve's share.
 
-Run:  python benchmarks/petsc_mpi.py                 (~10 minutes)
-      python benchmarks/petsc_mpi.py --sizes 50      (~2 minutes)
+Run:  python benchmarks/petsc_mpi.py --sizes 50      (~2 minutes)
       python benchmarks/petsc_mpi.py --sizes 160 --skip-paper --no-superlu
+                                                     (~45 minutes on 2 cores)
+      python benchmarks/petsc_mpi.py                 (adds SuperLU at 160 cells:
+                                                      over 20 minutes, 6 GB)
       SKFEM_RKPM_MPIEXEC=/path/to/mpiexec python benchmarks/petsc_mpi.py
 
 Needs petsc4py built with MPI (docs/performance.md, "PETSc and MPI").

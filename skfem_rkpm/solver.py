@@ -393,7 +393,7 @@ def _line_search(state, d, delta, r, tries=5, ratio=0.5):
             hi, g_hi = s, g_s
         s = lo + (hi - lo) * g_lo / (g_lo - g_hi)
         s = min(max(s, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
-    return s, trial
+    raise AssertionError("unreachable: the last trial returns or raises")
 
 
 def _reactions(prescribed, groups, lam):

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 
+from skfem_rkpm.runner import build
 from skfem_rkpm.scene import (SCHEMA, SceneError, apply_setting, builtin_scenes,
                               load_scene, parse_scene, schema_markdown)
 
@@ -98,3 +99,11 @@ def test_builtin_scenes_are_valid():
     assert "ring" in scenes
     for path in scenes.values():
         load_scene(path)
+
+
+def test_tool_slave_boundary_missing_from_the_mesh_names_the_tool():
+    scene = load_scene(builtin_scenes()["ring"],
+                       ['tools.platen.slaves=["top", "nose"]', "geometry.divisions=[4,3]"])
+    with pytest.raises(SceneError, match=r"\[tools.platen\] slaves: the mesh has no "
+                       r"boundary 'nose'; it has \['bottom', 'left', 'right', 'top'\]"):
+        build(scene, "fem")

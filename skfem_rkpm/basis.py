@@ -292,7 +292,9 @@ class RKBasis(_RKBase):
                              + (" (a mesh vertex without cells has no spacing: remove "
                                 "unused vertices)" if from_spacing else ""))
         _check_distinct(nodes, self.radius)
-        self.dilation = support
+        # a too small support is reported as a normalized support only when
+        # the radii come from it; explicit radii get a growth factor
+        self.dilation = support if from_spacing else None
         self.order, self.kernel = order, kernel
         self.support_shape, self.intorder = support_shape, intorder
         self.integration = integration

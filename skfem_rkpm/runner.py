@@ -68,7 +68,8 @@ def build(scene, method=None):
         basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
                         support_shape=disc["support_shape"], intorder=disc["quadrature"],
                         integration=disc["integration"], axisymmetric=model == "axisymmetric",
-                        radius=spacing_radius(mesh, disc),
+                        radius=(spacing_radius(mesh, disc)
+                                if disc["support"] is not None else None),
                         support=disc["dilation"])
     else:
         element = ELEMENTS[disc["element"]]()

@@ -72,6 +72,20 @@ def test_support_too_small_is_reported_with_the_dilation_that_works():
         build(scene)
 
 
+def test_support_radius_too_small_is_reported_as_a_growth_factor():
+    """With ``discretization.support`` (a radius, not a multiple of the
+    spacing) the message gives the factor the radius must grow by instead
+    of a normalized support the scene does not use."""
+    from skfem_rkpm.runner import build
+    from skfem_rkpm.shape import SingularMomentError
+
+    scene = parse_scene(GOOD + "\n[discretization]\nsupport = 0.05\n", "block.toml")
+    with pytest.raises(SingularMomentError, match="Supports must grow by a factor of at "
+                                                  "least") as err:
+        build(scene)
+    assert "normalized support" not in str(err.value)
+
+
 def test_settings_override_and_add_keys():
     text = apply_setting(GOOD, "material.nu=0.25")
     assert parse_scene(text)["material"]["nu"] == 0.25

@@ -1144,7 +1144,7 @@ class RigidContact:
         f = pts.G.T @ (-(pts.weights * traction)).T.ravel()
         Bn = _directional(pts.G, proj.normal)
         K = _rigid_tangent(pts, proj, Bn, slipped, law, self.omega_n, self.omega_t, self.mu)
-        self._gap_rows = (pts.weighted_hats @ Bn) / pts.node_weights[:, None]
+        self._normal_rows = Bn  # for touching(): the linearized gaps
         self.trial = ContactState(x, proj.gap, proj.normal, proj.tangent, relative,
                                   node_gap, pressure, shear, law[2], law[3],
                                   (pts.weights * traction).sum(axis=1))
@@ -1167,12 +1167,15 @@ class RigidContact:
         predicted to touch.
         """
         apart = ~self.trial.active
-        rows = self._gap_rows
+        if not apart.any():
+            return None
+        pts = self.points
+        rows = (pts.weighted_hats @ self._normal_rows) / pts.node_weights[:, None]
         predicted = self.trial.node_gap + rows @ delta
         touching = apart & (predicted < 0.0)
         if not touching.any():
             return None
-        scale = self.omega_n * self.points.node_weights * touching
+        scale = self.omega_n * pts.node_weights * touching
         f = rows.T @ (scale * self.trial.node_gap)
         K = rows.T @ sp.diags(scale) @ rows
         return touching, f, K.tocsr()

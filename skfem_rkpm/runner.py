@@ -98,14 +98,15 @@ def build(scene, method=None):
         if section["pressure"] is not None:
             pressures.append((boundary, section["pressure"]))
     load = _pressure_load(basis, pressures, model) if pressures else None
-    for name, section in scene.items():
-        missing = [b for b in (section.get("slaves") or []) if isinstance(b, str)
-                   and b not in boundaries] if name.startswith("tools.") else []
-        if missing:
-            raise SceneError(f"[{name}] slaves: the mesh has no boundary {missing[0]!r}; "
-                             f"it has {sorted(boundaries)}")
+    tool_sections = {name: section for name, section in scene.items()
+                     if name.startswith("tools.")}
+    for name, section in tool_sections.items():
+        for slave in section.get("slaves") or []:
+            if slave not in boundaries:
+                raise SceneError(f"[{name}] slaves: the mesh has no boundary {slave!r}; "
+                                 f"it has {sorted(boundaries)}")
     tools = [_tool(name.split(".", 1)[1], section, basis, problem, scene)
-             for name, section in scene.items() if name.startswith("tools.")]
+             for name, section in tool_sections.items()]
     points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
     return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points)
 

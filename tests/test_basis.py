@@ -164,3 +164,13 @@ def test_bad_arguments(rect):
         RKBasis(rect, support=-1.0)
     with pytest.raises(ValueError, match="smallest normalized support that works"):
         RKBasis(rect, support=0.6)
+
+
+def test_gauss_degree_without_a_rule_names_the_degree_and_the_cells():
+    """scikit-fem has triangle rules up to a finite degree only: the error
+    says which degree and which cells instead of NotImplementedError."""
+    from skfem_rkpm.meshes import rectangle
+
+    with pytest.raises(ValueError, match="scikit-fem has no Gauss rule of degree 40 for "
+                                         "MeshTri1 cells; use a lower intorder"):
+        RKBasis(rectangle(1.0, 1.0, 2, 2, kind="tri"), intorder=40)

@@ -117,7 +117,7 @@ def run_case(particles, method, repeat, budget, matrix_file, out):
     from skfem import Basis, ElementQuad1, ElementVector
 
     from skfem_rkpm import RKBasis
-    from skfem_rkpm.constraints import nodal_constraint
+    from skfem_rkpm.approximation.constraints import nodal_constraint
     from skfem_rkpm.linsolve import available, is_symmetric, make_solver
     from skfem_rkpm.mechanics.kinematics import deformation_gradient, from_entries
     from skfem_rkpm.mechanics.materials import J2Material, swift
@@ -270,8 +270,8 @@ def run_3d(particles, repeat, budget, out):
     sparse solve (``integration._balanced_coefficients``) in the same call."""
     from skfem import MeshHex
 
-    import skfem_rkpm.basis as basis_module
-    import skfem_rkpm.integration as integration
+    import skfem_rkpm.approximation.basis as basis_module
+    import skfem_rkpm.approximation.integration as integration
     from skfem_rkpm import RKBasis
 
     n = side(particles, 3)

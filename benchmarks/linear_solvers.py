@@ -62,7 +62,7 @@ def build(case, dofs):
     from skfem.models.elasticity import lame_parameters
 
     from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
-    from skfem_rkpm.constraints import nodal_constraint
+    from skfem_rkpm.approximation.constraints import nodal_constraint
     from skfem_rkpm.linsolve import _penalty
     from skfem_rkpm.meshes import rectangle
 

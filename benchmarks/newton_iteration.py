@@ -68,7 +68,7 @@ def build(nodes, kind):
     from skfem import Basis, ElementQuad1, ElementVector
 
     from skfem_rkpm import RKBasis
-    from skfem_rkpm.constraints import nodal_constraint
+    from skfem_rkpm.approximation.constraints import nodal_constraint
     from skfem_rkpm.mechanics.materials import J2Material, swift
     from skfem_rkpm.mechanics.problem import SolidProblem
     from skfem_rkpm.meshes import rectangle
@@ -102,7 +102,7 @@ def iteration(problem, C, g, d, times):
     Returns the tangent, the new state and the error of the solve (None if
     it succeeded); a failed solve is timed up to the failure.
     """
-    from skfem_rkpm.constraints import solve_constrained
+    from skfem_rkpm.approximation.constraints import solve_constrained
     from skfem_rkpm.mechanics.kinematics import deformation_gradient, to_assembler
 
     asm = problem.assembler

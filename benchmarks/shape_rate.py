@@ -8,8 +8,8 @@ Linear basis, cubic kernel, radial supports of normalized size 2.0
 
 ``--backend numpy|numba|both`` chooses the implementation (default: both
 when numba is installed, else numpy; ``pip install -e ".[fast]"``).  The
-time of the neighbour search (``skfem_rkpm.shape.find_pairs``, or
-``skfem_rkpm._shape_numba.find_pairs`` for the compiled kernel) is measured
+time of the neighbour search (``skfem_rkpm.approximation.shape.find_pairs``, or
+``skfem_rkpm.approximation._shape_numba.find_pairs`` for the compiled kernel) is measured
 inside the same call by wrapping the module attribute, so
 ``search + rest = total`` exactly.  The compile time of the compiled kernel
 is measured in a fresh process with an empty cache (``--compile-time``).  Each size is run once to warm up
@@ -44,8 +44,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
-import skfem_rkpm.shape as shape  # noqa: E402
-from skfem_rkpm.shape import rk_shape_functions  # noqa: E402
+import skfem_rkpm.approximation.shape as shape  # noqa: E402
+from skfem_rkpm.approximation.shape import rk_shape_functions  # noqa: E402
 
 TARGET = 5e6  # pairs per second on one core (numpy path)
 TARGET_COMPILED = 1e7  # with the compiled kernel
@@ -67,7 +67,7 @@ class SearchTimer:
 
     def __init__(self, backend="numpy"):
         if backend == "numba":
-            from skfem_rkpm import _shape_numba as module
+            from skfem_rkpm.approximation import _shape_numba as module
         else:
             module = shape
         self.module = module
@@ -138,7 +138,7 @@ COMPILE_SCRIPT = """
 import time
 t0 = time.process_time()
 import numpy as np
-from skfem_rkpm.shape import rk_shape_functions
+from skfem_rkpm.approximation.shape import rk_shape_functions
 x = np.random.default_rng(0).uniform(0, 1, ({dim}, 1000))
 t = np.linspace(0, 1, 16)
 nodes = np.array([a.ravel() for a in np.meshgrid(*[t] * {dim}, indexing="ij")])

@@ -1,11 +1,11 @@
 """skfem-rkpm: the Lagrangian reproducing kernel particle method on scikit-fem."""
 
 from .assembly import Assembler, isotropic_tangent, layout
-from .basis import RKBasis, RKFacetBasis
-from .constraints import linear_solve, solve, transformation
-from .kernels import cubic_spline, quartic_spline
+from .approximation.basis import RKBasis, RKFacetBasis
+from .approximation.constraints import linear_solve, solve, transformation
+from .approximation.kernels import cubic_spline, quartic_spline
 from .meshes import local_spacing
-from .shape import ShapeTable, SingularMomentError, rk_shape_functions
+from .approximation.shape import ShapeTable, SingularMomentError, rk_shape_functions
 
 __version__ = "0.1.0"
 

@@ -20,7 +20,7 @@ from skfem import (Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2
                    ElementVector, LinearForm, asm)
 from skfem.helpers import dot
 
-from .basis import RKBasis
+from .approximation.basis import RKBasis
 from .distributed import is_root
 from .elasticity import facet_basis
 from .io import FieldWriter, write_history

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .constraints import nodal_constraint, solve_constrained, weak_constraint
+from .approximation.constraints import nodal_constraint, solve_constrained, weak_constraint
 from .linsolve import make_solver
 from .mechanics.problem import InvertedElementError, NonFiniteError
 
@@ -42,7 +42,7 @@ class Prescribed:
     method : {"nodal", "weak"}
         Nodal values through the transformation method (Eq. 3.37), or weakly
         along the boundary with boundary multipliers
-        (:func:`skfem_rkpm.constraints.weak_constraint`).
+        (:func:`skfem_rkpm.approximation.constraints.weak_constraint`).
     """
 
     boundary: str

@@ -31,7 +31,7 @@ from skfem_rkpm.mechanics.materials import J2Material, linear, perfect, swift
 from skfem_rkpm.meshes import gmsh_rectangle, graded_rectangle, load, rectangle
 from skfem_rkpm.runner import build, run
 from skfem_rkpm.scene import SCHEMA, SceneError, builtin_scenes, load_scene, parse_scene
-from skfem_rkpm.shape import SingularMomentError, rk_shape_functions
+from skfem_rkpm.approximation.shape import SingularMomentError, rk_shape_functions
 
 FUZZ = settings(max_examples=60, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow])

@@ -13,7 +13,7 @@ from skfem.models.elasticity import lame_parameters
 
 from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
 from skfem_rkpm import linsolve
-from skfem_rkpm.constraints import nodal_constraint, solve_constrained
+from skfem_rkpm.approximation.constraints import nodal_constraint, solve_constrained
 from skfem_rkpm.linsolve import (BackendUnavailable, NotPositiveDefinite, available,
                                  is_symmetric, make_solver)
 from skfem_rkpm.meshes import rectangle

@@ -134,7 +134,7 @@ def test_petsc_solves_sparse_systems(name, symmetric):
 def test_petsc_solves_the_saddle_point_system():
     from test_linsolve import system
 
-    from skfem_rkpm.constraints import solve_constrained
+    from skfem_rkpm.approximation.constraints import solve_constrained
 
     K, C, g, f = system("rk")
     d_ref, lam_ref = solve_constrained(K, f, C, g, solver="dense")

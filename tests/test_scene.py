@@ -65,7 +65,7 @@ def test_missing_material_section_and_bad_toml():
 
 def test_support_too_small_is_reported_with_the_dilation_that_works():
     from skfem_rkpm.runner import build
-    from skfem_rkpm.shape import SingularMomentError
+    from skfem_rkpm.approximation.shape import SingularMomentError
 
     scene = parse_scene(GOOD + "\n[discretization]\ndilation = 0.6\n", "block.toml")
     with pytest.raises(SingularMomentError, match="smallest normalized support"):
@@ -77,7 +77,7 @@ def test_support_radius_too_small_is_reported_as_a_growth_factor():
     spacing) the message gives the factor the radius must grow by instead
     of a normalized support the scene does not use."""
     from skfem_rkpm.runner import build
-    from skfem_rkpm.shape import SingularMomentError
+    from skfem_rkpm.approximation.shape import SingularMomentError
 
     scene = parse_scene(GOOD + "\n[discretization]\nsupport = 0.05\n", "block.toml")
     with pytest.raises(SingularMomentError, match="Supports must grow by a factor of at "

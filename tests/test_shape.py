@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from skfem_rkpm import SingularMomentError, rk_shape_functions
-from skfem_rkpm.kernels import cubic_spline, get_kernel, quartic_spline
-from skfem_rkpm.shape import monomial_exponents
+from skfem_rkpm.approximation.kernels import cubic_spline, get_kernel, quartic_spline
+from skfem_rkpm.approximation.shape import monomial_exponents
 
 
 def grid(dim, n, perturb=0.0, graded=False, seed=0):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from skfem_rkpm import SingularMomentError, rk_shape_functions
-from skfem_rkpm import shape
-from skfem_rkpm.kernels import cubic_spline
+from skfem_rkpm.approximation import shape
+from skfem_rkpm.approximation.kernels import cubic_spline
 
 
 @pytest.fixture
@@ -151,7 +151,7 @@ def test_numba_backend_without_numba_is_a_clear_error(monkeypatch):
     """Simulate an installation without numba."""
     monkeypatch.delenv(shape.BACKEND_VARIABLE, raising=False)
     monkeypatch.setitem(sys.modules, "numba", None)
-    monkeypatch.setitem(sys.modules, "skfem_rkpm._shape_numba", None)
+    monkeypatch.setitem(sys.modules, "skfem_rkpm.approximation._shape_numba", None)
     monkeypatch.setattr(shape, "_loaded", None)
     nodes, h = grid(2, 6)
     x = np.random.default_rng(4).uniform(0, 1, (2, 30))

@@ -16,7 +16,7 @@ from skfem_rkpm.mechanics.contact import DEFAULT_PENALTY_FACTOR, Platen, RigidCo
 from skfem_rkpm.mechanics.materials import Hardening, J2Material, linear, perfect
 from skfem_rkpm.mechanics.problem import NonFiniteError, SolidProblem
 from skfem_rkpm.meshes import load, rectangle
-from skfem_rkpm.shape import SingularMomentError
+from skfem_rkpm.approximation.shape import SingularMomentError
 from skfem_rkpm.solver import Prescribed, newton_steps
 
 sys.path.insert(0, str(Path(__file__).parent))

@@ -32,7 +32,7 @@ from skfem_rkpm import (Assembler, RKBasis, SingularMomentError,  # noqa: E402
                         solve)
 from skfem_rkpm.elasticity import (error_norms, lame, solve_elasticity,  # noqa: E402
                                    stress_from_voigt)
-from skfem_rkpm.kernels import cubic_spline, quartic_spline  # noqa: E402
+from skfem_rkpm.approximation.kernels import cubic_spline, quartic_spline  # noqa: E402
 from skfem_rkpm.meshes import gmsh_plate_with_hole, rectangle  # noqa: E402
 from skfem_rkpm.verification import (convergence_study, plate_with_hole,  # noqa: E402
                                      rates, rigid_motion_dofs, solve_problem,

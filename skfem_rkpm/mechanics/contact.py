@@ -73,7 +73,7 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
-from ..constraints import transformation
+from ..approximation.constraints import transformation
 from .problem import NonFiniteError
 
 __all__ = ["DEFAULT_PENALTY_FACTOR", "DEFAULT_TANGENTIAL_FACTOR", "Projection", "Tool",

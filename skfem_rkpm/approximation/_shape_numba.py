@@ -1,6 +1,6 @@
-"""Compiled kernel of :func:`skfem_rkpm.shape.rk_shape_functions` (needs numba).
+"""Compiled kernel of :func:`skfem_rkpm.approximation.shape.rk_shape_functions` (needs numba).
 
-The same table as the numpy path in :mod:`skfem_rkpm.shape`, entry by entry:
+The same table as the numpy path in :mod:`skfem_rkpm.approximation.shape`, entry by entry:
 the pairs of each point in increasing particle order, the same formulas for
 the kernel, the monomials, the moment matrix, its Gauss-Jordan inverse, the
 reciprocal condition number, the values and the gradients.  Only the order
@@ -29,9 +29,9 @@ from numba import njit
 
 __all__ = ["KERNEL_CODES", "SUPPORT_CODES", "pair_table", "build"]
 
-#: kernels the compiled path knows, by name (see :mod:`skfem_rkpm.kernels`)
+#: kernels the compiled path knows, by name (see :mod:`skfem_rkpm.approximation.kernels`)
 KERNEL_CODES = {"cubic": 0, "quartic": 1}
-#: support shapes, as in :func:`skfem_rkpm.shape.find_pairs`
+#: support shapes, as in :func:`skfem_rkpm.approximation.shape.find_pairs`
 SUPPORT_CODES = {"radial": 0, "box": 1}
 
 _OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
@@ -39,8 +39,8 @@ _OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
 
 @njit(**_OPTIONS)
 def _kernel(z, code):
-    """φ(z) and dφ/dz of :func:`~skfem_rkpm.kernels.cubic_spline` (code 0)
-    or :func:`~skfem_rkpm.kernels.quartic_spline` (code 1)."""
+    """φ(z) and dφ/dz of :func:`~skfem_rkpm.approximation.kernels.cubic_spline` (code 0)
+    or :func:`~skfem_rkpm.approximation.kernels.quartic_spline` (code 1)."""
     if code == 0:
         u = max(1.0 - z, 0.0)
         v = max(0.5 - z, 0.0)
@@ -198,7 +198,7 @@ def _fill(x, particles, indptr, indices, kcode, box, axes, basis, build,
     """Values, gradients and reciprocal condition numbers per point.
 
     The formulas and the order of the operations are those of
-    :func:`skfem_rkpm.shape._build` (``_kernel_weights``, ``_monomials``,
+    :func:`skfem_rkpm.approximation.shape._build` (``_kernel_weights``, ``_monomials``,
     ``_moment_matrices``, ``_batched_inverse``, ``_rcond``,
     ``_moment_solve``), one point at a time.  The points are taken in their
     own order: the result is written as it is laid out in memory.  Row ``I``
@@ -363,7 +363,7 @@ def _fill(x, particles, indptr, indices, kcode, box, axes, basis, build,
 
 
 def _recurrences(build, lowered):
-    """:func:`~skfem_rkpm.shape._monomial_recurrences` as arrays for
+    """:func:`~skfem_rkpm.approximation.shape._monomial_recurrences` as arrays for
     :func:`_fill`."""
     build = np.array([(0, 0, 0)] + list(build), dtype=np.int64).reshape(-1, 3)
     assert np.array_equal(build[:, 0], np.arange(len(build)))
@@ -376,10 +376,10 @@ def _recurrences(build, lowered):
 
 
 def build(x, nodes, radius, build, lowered, kernel, support, gradients):
-    """Table arrays of :func:`~skfem_rkpm.shape.rk_shape_functions`.
+    """Table arrays of :func:`~skfem_rkpm.approximation.shape.rk_shape_functions`.
 
     ``x`` (dim, npoints), ``nodes`` (dim, nnodes), ``radius`` (nnodes,);
-    ``build, lowered`` from :func:`~skfem_rkpm.shape._monomial_recurrences`.
+    ``build, lowered`` from :func:`~skfem_rkpm.approximation.shape._monomial_recurrences`.
     Returns ``(indptr, indices, values, grads, rcond)``, or ``(indptr,
     indices, None, None, None)`` if a point is covered by fewer than ``m``
     particles (the numpy path then reports it), or None if the particles
@@ -420,7 +420,7 @@ def pair_table(x, nodes, radius, support="radial"):
     """CSR pairs ``(indptr, indices)`` as the numpy path finds them.
 
     ``x`` (dim, npoints) and ``nodes`` (dim, nnodes) as in
-    :func:`~skfem_rkpm.shape.rk_shape_functions`, ``radius`` (nnodes,).
+    :func:`~skfem_rkpm.approximation.shape.rk_shape_functions`, ``radius`` (nnodes,).
     """
     return find_pairs(np.ascontiguousarray(np.asarray(x, dtype=float).T),
                       np.ascontiguousarray(np.asarray(nodes, dtype=float).T),

@@ -1,0 +1,501 @@
+"""RKBasis: reproducing kernel shape functions behind scikit-fem's basis face.
+
+A scikit-fem form sees, per background cell, a list of local functions with
+their values and gradients at the cell's quadrature points.  For an RK basis
+the local functions of a cell are the particles whose supports reach any of
+its quadrature points; the lists are padded to a common length with
+functions that are zero everywhere.  Particle ``I`` owns the scalar
+coefficient ``I`` (scalar fields) or the coefficients ``dim*I + c``
+(vector fields, interleaved like scikit-fem's ``ElementVector``).
+
+Coefficients are *generalized* displacements ``d_I`` (Eq. 3.24), not nodal
+values: use :meth:`RKBasis.nodal_values` (Eq. 3.32) to read nodal values and
+:func:`skfem_rkpm.solve` to prescribe them (the transformation method).
+"""
+
+import copy
+
+import numpy as np
+import scipy.sparse as sp
+from skfem.assembly.basis import AbstractBasis
+from skfem.element import DiscreteField
+
+from .integration import cell_geometry, facet_geometry, vci_gradients
+from ..meshes import local_spacing
+from .shape import ShapeTable, coordinates, rk_shape_functions
+
+__all__ = ["RKBasis", "RKFacetBasis"]
+
+INTEGRATION_SCHEMES = ("vci", "gauss")
+
+
+def _rows(table, start, stop):
+    """The rows ``start:stop`` (evaluation points) of a shape table."""
+    lo, hi = table.indptr[start], table.indptr[stop]
+    return ShapeTable(table.indptr[start:stop + 1] - lo, table.indices[lo:hi],
+                      table.values[lo:hi],
+                      None if table.grads is None else table.grads[:, lo:hi],
+                      table.nnodes)
+
+
+def _padded(table, nelems, nqp, grads):
+    """Per-cell padded node lists and values from a pair table.
+
+    Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems, nqp)
+    and ``grads`` (dim, nloc, nelems, nqp) (None if ``grads`` is None).
+    """
+    rows, nodes = table.rows, table.indices
+    cell, qp = np.divmod(rows, nqp)
+    key = cell * table.nnodes + nodes
+    unique, inverse = np.unique(key, return_inverse=True)
+    ucell = unique // table.nnodes
+    first = np.searchsorted(ucell, np.arange(nelems))
+    slot_of_unique = np.arange(len(unique)) - first[ucell]
+    nloc = int(slot_of_unique.max()) + 1
+    element_nodes = np.empty((nloc, nelems), dtype=np.int64)
+    # padding slots point at the cell's first particle and carry zeros
+    element_nodes[:] = (unique[first] % table.nnodes)[None, :]
+    element_nodes[slot_of_unique, ucell] = unique % table.nnodes
+    slot = slot_of_unique[inverse]
+    values = np.zeros((nloc, nelems, nqp))
+    values[slot, cell, qp] = table.values
+    g = None
+    if grads is not None:
+        g = np.zeros((grads.shape[0], nloc, nelems, nqp))
+        g[:, slot, cell, qp] = grads
+    return element_nodes, values, g
+
+
+class _RKBase(AbstractBasis):
+    """What cell and facet RK bases share: dofs, local functions, fields."""
+
+    def _setup(self, mesh, geometry, table, test_grads, nodes, vector):
+        self.mesh = mesh
+        self.geometry = geometry
+        self.X, self.W = geometry.X, geometry.W
+        self.dx = geometry.dx
+        self.nelems = geometry.nelems
+        self.nodes = nodes
+        self.table = table
+        self.test_grads = test_grads
+        self.ncomp = nodes.shape[0] if vector else 1
+        self.tind = None
+        self.mapping = geometry.mapping
+        nqp = self.X.shape[-1]
+        self.element_nodes, self.values, self.grads = _padded(
+            table, self.nelems, nqp, test_grads
+        )
+        self.Nbfun = self.ncomp * self.element_nodes.shape[0]
+
+    # -- dof numbering -----------------------------------------------------
+    @property
+    def N(self):
+        return self.ncomp * self.nodes.shape[1]
+
+    @property
+    def nnodes(self):
+        return self.nodes.shape[1]
+
+    @property
+    def element_dofs(self):
+        c = self.ncomp
+        dofs = c * self.element_nodes[:, None, :] + np.arange(c)[None, :, None]
+        return dofs.reshape(-1, self.nelems)
+
+    @property
+    def doflocs(self):
+        """Location of every coefficient: its particle, shape (dim, N)."""
+        return np.repeat(self.nodes, self.ncomp, axis=1)
+
+    @property
+    def vector(self):
+        return self.ncomp > 1
+
+    # -- local functions for scikit-fem forms -----------------------------
+    @property
+    def basis(self):
+        """Per local function a tuple ``(DiscreteField,)`` as in scikit-fem."""
+        if getattr(self, "_basis", None) is None:
+            self._basis = self._local_functions(self.values, self.grads)
+        return self._basis
+
+    def _local_functions(self, values, grads):
+        out = []
+        c = self.ncomp
+        for k in range(self.element_nodes.shape[0]):
+            g = None if grads is None else grads[:, k]
+            if c == 1:
+                out.append((DiscreteField(values[k], g),))
+                continue
+            for comp in range(c):
+                v = np.zeros((c,) + values[k].shape)
+                v[comp] = values[k]
+                gv = None
+                if g is not None:
+                    gv = np.zeros((c,) + g.shape)
+                    gv[comp] = g
+                out.append((DiscreteField(v, gv),))
+        return out
+
+    def default_parameters(self):
+        return self.geometry.default_parameters()
+
+    def global_coordinates(self):
+        return self.geometry.global_coordinates()
+
+    def mesh_parameters(self):
+        return self.geometry.mesh_parameters()
+
+    # -- fields -------------------------------------------------------------
+    def _components(self, w):
+        w = np.asarray(w)
+        if w.shape[0] != self.N:
+            raise ValueError(
+                f"coefficient vector has length {w.shape[0]}, the basis has "
+                f"{self.N} dofs ({self.nnodes} particles x {self.ncomp} components)"
+            )
+        return w.reshape(self.nnodes, self.ncomp).T
+
+    def _shape_of(self, a):
+        return a.reshape(a.shape[:-1] + (self.nelems, -1))
+
+    def interpolate(self, w):
+        """Field and its exact gradient at the quadrature points.
+
+        Returns a ``DiscreteField`` of shape (nelems, nqp) for scalar bases
+        or (dim, nelems, nqp) for vector bases, with ``.grad``.
+        """
+        comps = self._components(w)
+        A = self.table.matrix()
+        value = self._shape_of(comps @ A.T)
+        grad = None
+        if self.table.grads is not None:
+            grad = np.stack([comps @ self.table.gradient_matrix(k).T
+                             for k in range(self.nodes.shape[0])], axis=-2)
+            grad = self._shape_of(grad)
+        if self.ncomp == 1:
+            value = value[0]
+            grad = None if grad is None else grad[0]
+        return DiscreteField(value, grad)
+
+    def zeros(self, dtype=None):
+        return np.zeros(self.N, dtype=dtype)
+
+    def __repr__(self):
+        return (f"<skfem_rkpm {type(self).__name__}: {self.nnodes} particles, "
+                f"{self.N} dofs, {self.nelems} cells x {self.X.shape[-1]} "
+                f"quadrature points, up to {self.element_nodes.shape[0]} "
+                "particles per cell>")
+
+
+def _check_distinct(nodes, radius):
+    """Raise if two particles coincide (closer than 1e-9 of the smallest
+    support, or of the extent of the particles if that is smaller)."""
+    from scipy.spatial import cKDTree
+
+    extent = np.ptp(nodes, axis=1).max() if nodes.shape[1] > 1 else 0.0
+    tol = 1e-9 * min(np.min(radius, initial=np.inf), extent if extent > 0 else np.inf)
+    if not np.isfinite(tol):
+        return
+    pairs = cKDTree(nodes.T).query_pairs(tol, output_type="ndarray")
+    if len(pairs):
+        pairs = np.sort(pairs, axis=1)
+        i, j = pairs[np.lexsort(pairs.T[::-1])[0]]
+        where = ", ".join(f"{c:.6g}" for c in nodes[:, i])
+        raise ValueError(
+            f"particles {i} and {j} coincide at ({where}) ({len(pairs)} such pairs): "
+            "their shape functions would be identical and the stiffness matrix "
+            "singular; remove the duplicate vertices or particles")
+
+
+class RKBasis(_RKBase):
+    """Reproducing kernel basis on the background cells of a scikit-fem mesh.
+
+    Parameters
+    ----------
+    mesh : skfem.Mesh
+        Background mesh; its cells supply quadrature, its vertices are the
+        particles unless ``nodes`` is given.
+    vector : bool
+        Vector field with ``mesh.dim()`` components (displacements).
+    support : float
+        Normalized support ``c``: particle I gets radius ``a_I = c h_I``
+        with ``h_I`` the local nodal spacing (:func:`local_spacing`).
+    order : int
+        Basis order ``N`` of Eq. (3.18): 0, 1 or 2.
+    kernel : str or callable
+        Window function, ``"cubic"`` (Eq. 3.12, default) or ``"quartic"``.
+    support_shape : {"radial", "box"}
+        Circular/spherical or tensor-product supports.
+    intorder : int
+        Degree of the Gauss rule on each background cell.
+    integration : {"vci", "gauss"}
+        ``"gauss"``: plain Gauss quadrature, the paper's scheme.
+        ``"vci"``: variationally consistent test-function gradients (see
+        :mod:`skfem_rkpm.approximation.integration`); ``basis.basis`` then holds the
+        corrected test functions and ``basis.trial`` the exact ones, and
+        ``asm(form, basis.trial, basis)`` is the consistent Petrov-Galerkin
+        matrix.
+    nodes : ndarray, shape (dim, nnodes), optional
+        Particle positions; default the mesh vertices.
+    radius : float or ndarray, optional
+        Support radii given explicitly (overrides ``support``).
+    axisymmetric : bool
+        The problem is axisymmetric with ``x`` the radius: VCI then imposes
+        its constraints in the measure ``R dR dZ``.  The basis itself (and
+        ``dx`` for scikit-fem forms) is unchanged.
+    """
+
+    def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
+                 support_shape="radial", intorder=4, integration="vci",
+                 nodes=None, radius=None, axisymmetric=False):
+        if integration not in INTEGRATION_SCHEMES:
+            raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
+                             f"not {integration!r}")
+        if isinstance(order, (bool, np.bool_)) or order not in (0, 1, 2):
+            raise ValueError(f"basis order must be 0, 1 or 2, not {order!r}")
+        if isinstance(intorder, (bool, np.bool_)) or not isinstance(
+                intorder, (int, np.integer)) or intorder < 1:
+            raise ValueError(f"intorder (the Gauss rule degree) must be an integer >= 1, "
+                             f"not {intorder!r}")
+        if nodes is None:
+            coordinates(mesh.p, "mesh vertex")
+            nodes = mesh.p
+            spacing = local_spacing(mesh)
+        else:
+            nodes = coordinates(nodes, "particle")
+            spacing = None
+        if nodes.shape[1] == 0:
+            raise ValueError("there are no particles; give at least one")
+        from_spacing = radius is None
+        if radius is None:
+            if spacing is None:
+                raise ValueError("with custom nodes give the support radii "
+                                 "explicitly: RKBasis(..., radius=...)")
+            if isinstance(support, (bool, np.bool_)) or not isinstance(
+                    support, (int, float, np.integer, np.floating)) or not (
+                    np.isfinite(support) and support > 0):
+                raise ValueError("normalized support must be positive and finite, "
+                                 f"not {support!r}")
+            radius = support * spacing
+        try:
+            self.radius = np.broadcast_to(np.asarray(radius, float),
+                                          (nodes.shape[1],)).copy()
+        except (TypeError, ValueError):
+            raise ValueError(f"radius must be one number or one per particle "
+                             f"({nodes.shape[1]}), not {radius!r}") from None
+        bad = np.flatnonzero(~(np.isfinite(self.radius) & (self.radius > 0)))
+        if bad.size:
+            where = ", ".join(f"{c:.6g}" for c in nodes[:, bad[0]])
+            raise ValueError(f"support radius of particle {bad[0]} at ({where}) is "
+                             f"{self.radius[bad[0]]}; radii must be positive and finite"
+                             + (" (a mesh vertex without cells has no spacing: remove "
+                                "unused vertices)" if from_spacing else ""))
+        _check_distinct(nodes, self.radius)
+        # a too small support is reported as a normalized support only when
+        # the radii come from it; explicit radii get a growth factor
+        self.dilation = support if from_spacing else None
+        self.order, self.kernel = order, kernel
+        self.support_shape, self.intorder = support_shape, intorder
+        self.integration = integration
+        self.axisymmetric = axisymmetric
+
+        try:
+            geometry = cell_geometry(mesh, intorder)
+            boundary = facet_geometry(mesh, intorder)
+        except NotImplementedError:
+            raise ValueError(f"scikit-fem has no Gauss rule of degree {intorder} for "
+                             f"{type(mesh).__name__} cells; use a lower intorder") from None
+        xq = geometry.global_coordinates().reshape(mesh.dim(), -1)
+        xb = boundary.global_coordinates().reshape(mesh.dim(), -1)
+        # one build for every point the basis will need (cell and boundary
+        # quadrature, particles), so that a too small support is reported
+        # once, for all of them, with a dilation that works everywhere
+        sizes = np.cumsum([0, xq.shape[1], xb.shape[1], nodes.shape[1]])
+        everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes)
+        table, btable, ntable = (_rows(everything, a, b)
+                                 for a, b in zip(sizes[:-1], sizes[1:]))
+        self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
+            nodes.shape[0] if vector else 1), format="csr")
+        test_grads = table.grads
+        if integration == "vci":
+            test_grads = vci_gradients(
+                table, xq, geometry.dx.ravel(), btable, xb,
+                boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
+                nodes, self.radius, order, kernel, support_shape, axisymmetric)
+        self._setup(mesh, geometry, table, test_grads, nodes, vector)
+
+    def _shape_table(self, x, nodes=None, gradients=True):
+        return rk_shape_functions(
+            x, self.nodes if nodes is None else nodes, self.radius, self.order,
+            self.kernel, self.support_shape, gradients=gradients,
+            dilation=self.dilation,
+        )
+
+    @property
+    def trial(self):
+        """The same basis with the exact (uncorrected) gradients.
+
+        With ``integration="gauss"`` this is the basis itself.
+        """
+        if self.test_grads is self.table.grads:
+            return self
+        if getattr(self, "_trial", None) is None:
+            trial = copy.copy(self)
+            _, _, trial.grads = _padded(self.table, self.nelems,
+                                        self.X.shape[-1], self.table.grads)
+            trial.test_grads = self.table.grads
+            trial._basis = None
+            trial._trial = trial
+            self._trial = trial
+        return self._trial
+
+    # -- the transformation method, Eq. (3.32)-(3.34) ------------------------
+    @property
+    def nodal_matrix(self):
+        """Λᵀ of Eq. (3.33): maps coefficients d to nodal values d̂ = Λᵀ d.
+
+        Scalar entries ``L_IJ = Ψ_I(X_J)`` (Eq. 3.34), interleaved per
+        component for vector bases; sparse, shape (N, N).
+        """
+        return self._nodal_matrix
+
+    def nodal_values(self, d):
+        """Nodal values ``û = Λᵀ d`` (Eq. 3.32) of coefficients ``d``."""
+        return self.nodal_matrix @ np.asarray(d)
+
+    # -- evaluation anywhere -------------------------------------------------
+    def probes(self, x):
+        """Sparse matrix that maps coefficients to field values at points ``x``.
+
+        ``x`` has shape (dim, npoints).  Rows are ordered component-major
+        (all points of component 0, then component 1, ...), as in scikit-fem.
+        """
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        T = self._shape_table(x, gradients=False).matrix()
+        c = self.ncomp
+        blocks = [sp.kron(T, sp.csr_matrix(([1.0], ([0], [comp])), shape=(1, c)))
+                  for comp in range(c)]
+        return sp.vstack(blocks, format="csr")
+
+    def interpolator(self, w):
+        """Function ``x -> field values at x`` for coefficients ``w``."""
+        def interpolate_at(x):
+            out = self.probes(x) @ w
+            return out if self.ncomp == 1 else out.reshape(self.ncomp, -1)
+        return interpolate_at
+
+    def project(self, interp):
+        """L² projection of a function onto the basis; returns coefficients.
+
+        ``interp`` is a callable of the global quadrature coordinates
+        (shape (dim, nelems, nqp)) or an array of values at the quadrature
+        points, shaped like :meth:`interpolate` returns.
+        """
+        from scipy.sparse.linalg import splu
+
+        if callable(interp):
+            interp = interp(self.global_coordinates())
+        values = np.broadcast_to(np.asarray(interp, dtype=float),
+                                 ((self.ncomp,) if self.ncomp > 1 else ())
+                                 + (self.nelems, self.X.shape[-1]))
+        A = self.table.matrix()
+        w = self.dx.ravel()
+        M = (A.T @ sp.diags(w) @ A).tocsc()
+        rhs = A.T @ (values.reshape(self.ncomp, -1) * w).T
+        coeffs = splu(M, permc_spec="MMD_AT_PLUS_A").solve(np.asarray(rhs))
+        return coeffs.reshape(-1)
+
+    # -- dofs ---------------------------------------------------------------
+    def get_dofs(self, facets=None, component=None, nodes=None):
+        """Coefficient numbers of the particles on a boundary.
+
+        Parameters
+        ----------
+        facets : str, callable, set of str or array, optional
+            A boundary name of ``mesh.boundaries`` (or several), facet
+            indices, or a callable ``x -> bool`` evaluated at the particle
+            positions.  Default: the whole boundary.
+        component : int or sequence of int, optional
+            Keep these components of a vector basis (default all).
+        nodes : array of int, optional
+            Particle indices, instead of ``facets``.
+
+        Returns
+        -------
+        ndarray
+            Sorted dof numbers, interleaved ``dim*I + c``.
+        """
+        if nodes is None:
+            nodes = self._boundary_particles(facets)
+        nodes = np.asarray(nodes, dtype=np.int64)
+        comps = range(self.ncomp) if component is None else np.atleast_1d(component)
+        bad = [c for c in comps if not 0 <= c < self.ncomp]
+        if bad:
+            raise ValueError(f"component {bad[0]} does not exist: the basis "
+                             f"has {self.ncomp} component(s)")
+        dofs = (self.ncomp * nodes[:, None] + np.asarray(list(comps))[None, :])
+        return np.unique(dofs.ravel())
+
+    def _boundary_particles(self, facets):
+        if callable(facets):
+            return np.flatnonzero(facets(self.nodes))
+        if self.nodes is not self.mesh.p:
+            raise ValueError("particles are not the mesh vertices: select them "
+                             "with a callable get_dofs(lambda x: ...) or nodes=")
+        if facets is None:
+            facets = self.mesh.boundary_facets()
+        elif isinstance(facets, str):
+            facets = self._named_boundary(facets)
+        elif isinstance(facets, (set, list, tuple)) and all(
+                isinstance(f, str) for f in facets):
+            facets = np.concatenate([self._named_boundary(f) for f in facets])
+        return np.unique(self.mesh.facets[:, np.asarray(facets)])
+
+    def _named_boundary(self, name):
+        boundaries = self.mesh.boundaries or {}
+        if name not in boundaries:
+            raise ValueError(f"the mesh has no boundary named {name!r}; it has "
+                             f"{sorted(boundaries)}")
+        return np.asarray(boundaries[name])
+
+    def boundary(self, facets=None, intorder=None):
+        """The RK facet basis on (part of) the boundary, for traction loads."""
+        return RKFacetBasis(self, facets, intorder)
+
+
+class RKFacetBasis(_RKBase):
+    """The particles of an :class:`RKBasis` seen from boundary facets.
+
+    Used for boundary integrals (pressure and traction loads) with
+    scikit-fem forms; ``w.n`` holds the outward unit normal.
+
+    Parameters
+    ----------
+    basis : RKBasis
+        The cell basis whose particles and supports are used.
+    facets : str, set of str or array, optional
+        Named boundary (boundaries) or facet indices; default all.
+    intorder : int, optional
+        Quadrature degree on the facets; default that of ``basis``.  Keep the
+        default for loads in a VCI patch test: the correction is built with
+        that boundary quadrature.
+    """
+
+    def __init__(self, basis, facets=None, intorder=None):
+        self.parent = basis
+        mesh = basis.mesh
+        if isinstance(facets, str):
+            facets = basis._named_boundary(facets)
+        elif isinstance(facets, (set, list, tuple)) and all(
+                isinstance(f, str) for f in facets):
+            facets = np.concatenate([basis._named_boundary(f) for f in facets])
+        geometry = facet_geometry(mesh, basis.intorder if intorder is None
+                                  else intorder, facets)
+        xb = geometry.global_coordinates().reshape(mesh.dim(), -1)
+        table = basis._shape_table(xb)
+        self.radius = basis.radius
+        self._setup(mesh, geometry, table, table.grads, basis.nodes, basis.vector)
+
+    def default_parameters(self):
+        return self.geometry.default_parameters()

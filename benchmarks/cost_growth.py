@@ -118,7 +118,7 @@ def run_case(particles, method, repeat, budget, matrix_file, out):
 
     from skfem_rkpm import RKBasis
     from skfem_rkpm.approximation.constraints import nodal_constraint
-    from skfem_rkpm.linsolve import available, is_symmetric, make_solver
+    from skfem_rkpm.solvers.linear import available, is_symmetric, make_solver
     from skfem_rkpm.mechanics.kinematics import deformation_gradient, from_entries
     from skfem_rkpm.mechanics.materials import J2Material, swift
     from skfem_rkpm.mechanics.problem import SolidProblem
@@ -200,7 +200,7 @@ def run_solve(matrix_file, backend, repeat, budget, out):
     """Time ``solve_saddle_point`` with a fresh ``backend`` on the stored system."""
     import scipy.sparse as sp
 
-    from skfem_rkpm.linsolve import make_solver, solve_saddle_point
+    from skfem_rkpm.solvers.linear import make_solver, solve_saddle_point
 
     z = np.load(matrix_file)
     K = sp.csr_matrix((z["data"], z["indices"], z["indptr"]), shape=tuple(z["shape"]))
@@ -381,7 +381,7 @@ def main():
     import scipy
     import skfem
 
-    from skfem_rkpm.linsolve import available
+    from skfem_rkpm.solvers.linear import available
 
     installed = available()
     backends = [b for b in args.backends if b in installed]

@@ -5,7 +5,7 @@ Matrices: the small-strain elasticity tangent
 ν = 0.3) on ``rectangle(1, 1, n, n)`` with the left side clamped by the
 augmented Lagrangian term, ``A = K + ρ CᵀC`` with ``C`` the nodal constraints
 of both components on the left side and ``ρ`` as in
-:func:`skfem_rkpm.linsolve.solve_saddle_point` (so that every backend,
+:func:`skfem_rkpm.solvers.linear.solve_saddle_point` (so that every backend,
 including the SPD-only ones, gets the same nonsingular matrix).  Bases:
 
 * ``rk``: ``RKBasis(mesh, vector=True, support=2.0)``, VCI integration
@@ -15,7 +15,7 @@ including the SPD-only ones, gets the same nonsingular matrix).  Bases:
   definite;
 * ``fem``: ``Basis(mesh, ElementVector(ElementQuad1()), intorder=2)``.
 
-For each backend of :mod:`skfem_rkpm.linsolve` the script times, in a fresh
+For each backend of :mod:`skfem_rkpm.solvers.linear` the script times, in a fresh
 process (so that the peak resident memory is that of one backend):
 
 * *factor*: the first ``factor(A)`` (symbolic analysis + numeric factorization);
@@ -63,7 +63,7 @@ def build(case, dofs):
 
     from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
     from skfem_rkpm.approximation.constraints import nodal_constraint
-    from skfem_rkpm.linsolve import _penalty
+    from skfem_rkpm.solvers.linear import _penalty
     from skfem_rkpm.meshes import rectangle
 
     n = max(2, int(round(np.sqrt(dofs / 2.0) - 1)))
@@ -84,7 +84,7 @@ def build(case, dofs):
 
 def child(path, backend):
     """Time one backend on the matrix in ``path``; print a JSON line."""
-    from skfem_rkpm.linsolve import make_solver
+    from skfem_rkpm.solvers.linear import make_solver
 
     A = sp.load_npz(path).tocsr()
     b = np.random.default_rng(0).normal(size=A.shape[0])
@@ -146,7 +146,7 @@ def main():
     if args.child:
         return child(*args.child)
 
-    from skfem_rkpm.linsolve import available
+    from skfem_rkpm.solvers.linear import available
     backends = args.backends or available()
     print("backends:", ", ".join(backends))
     print("\n| case | dofs | nnz/row | backend | factor s | refactor s | solve s | "

@@ -1,6 +1,6 @@
 """Cost of one Newton iteration of the finite-strain solid: RK vs FEM Q1.
 
-One iteration of :func:`skfem_rkpm.solver.newton_steps` evaluates the solid
+One iteration of :func:`skfem_rkpm.solvers.newton.newton_steps` evaluates the solid
 at the current coefficients and solves the linearized constrained system.
 This script times its four parts separately, on plane strain meshes of the
 unit square (``rectangle(1, 1, n, n)``) with about 1e3, 1e4 and 1e5 nodes:

@@ -69,7 +69,7 @@ def ring(cells=15, overrides=()):
 
 def steps(sim, count, solver):
     """The first ``count`` of the 100 load steps: (result, wall seconds)."""
-    from skfem_rkpm.solver import newton_steps
+    from skfem_rkpm.solvers.newton import newton_steps
 
     targets = np.linspace(0.0, 1.0, sim.scene["steps"]["count"] + 1)[1:count + 1]
     start = time.perf_counter()
@@ -84,7 +84,7 @@ def steps(sim, count, solver):
 # -- paper resolution ----------------------------------------------------
 def paper(args):
     from skfem_rkpm.approximation.constraints import solve_constrained
-    from skfem_rkpm.linsolve import make_solver
+    from skfem_rkpm.solvers.linear import make_solver
 
     sim = ring()
     result, _ = steps(sim, 10, "auto")
@@ -123,8 +123,8 @@ def paper(args):
 # -- refined rings on 1 and 2 ranks ---------------------------------------
 def worker(args):
     """One run (possibly one MPI rank of it); rank 0 writes a JSON record."""
-    from skfem_rkpm.distributed import is_root, world
-    from skfem_rkpm.linsolve import make_solver
+    from skfem_rkpm.solvers.petsc import is_root, world
+    from skfem_rkpm.solvers.linear import make_solver
 
     clock = time.perf_counter()
     sim = ring(args.cells)

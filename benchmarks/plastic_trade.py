@@ -97,7 +97,7 @@ def make_problem(kind, n, options, locking):
 
 def upset(kind, n, options, locking):
     """One run: (completed, force per depth, dofs, CPU s, Newton iterations, message)."""
-    from skfem_rkpm.solver import Prescribed, newton_steps
+    from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
     start = time.process_time()
     problem = make_problem(kind, n, options, locking)

@@ -70,8 +70,8 @@ def build(method, overrides=()):
 def prepare(method, steps, overrides=()):
     """The ring after ``steps`` of its 100 load steps, and the first iterate
     of the next step (the last step's rate of change, as in
-    :func:`~skfem_rkpm.solver.newton_steps`): (sim, d, t, C)."""
-    from skfem_rkpm.solver import newton_steps
+    :func:`~skfem_rkpm.solvers.newton.newton_steps`): (sim, d, t, C)."""
+    from skfem_rkpm.solvers.newton import newton_steps
 
     sim = build(method, overrides)
     targets = np.linspace(0.0, 1.0, sim.scene["steps"]["count"] + 1)[1:steps + 2]

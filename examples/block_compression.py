@@ -58,7 +58,7 @@ from skfem_rkpm.mechanics.contact import Platen, RigidContact  # noqa: E402
 from skfem_rkpm.mechanics.materials import J2Material, swift  # noqa: E402
 from skfem_rkpm.mechanics.problem import SolidProblem  # noqa: E402
 from skfem_rkpm.meshes import rectangle  # noqa: E402
-from skfem_rkpm.solver import Prescribed, newton_steps  # noqa: E402
+from skfem_rkpm.solvers.newton import Prescribed, newton_steps  # noqa: E402
 
 E, NU = 200e3, 0.3  # MPa
 HARDENING = swift(589.0, 1e-4, 0.216)

@@ -34,7 +34,7 @@ from skfem_rkpm.mechanics.contact import Platen, RigidContact  # noqa: E402
 from skfem_rkpm.mechanics.materials import J2Material, linear  # noqa: E402
 from skfem_rkpm.mechanics.problem import SolidProblem  # noqa: E402
 from skfem_rkpm.meshes import rectangle  # noqa: E402
-from skfem_rkpm.solver import Prescribed, newton_steps  # noqa: E402
+from skfem_rkpm.solvers.newton import Prescribed, newton_steps  # noqa: E402
 
 RADIUS, HALF_HEIGHT = 10.0, 10.0  # mm
 MATERIAL = dict(E=200e3, nu=0.3, yield_stress=250.0, hardening=1000.0)  # MPa

@@ -15,8 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from .distributed import is_root, world
-from .linsolve import BACKENDS
+from .solvers.petsc import is_root, world
+from .solvers.linear import BACKENDS
 from .scene import SceneError, builtin_scenes, load_scene
 
 __all__ = ["main"]

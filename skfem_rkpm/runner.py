@@ -2,8 +2,8 @@
 
 :func:`build` maps the validated scene dict one-to-one onto library objects
 (mesh, basis, :class:`~skfem_rkpm.mechanics.problem.SolidProblem`,
-:class:`~skfem_rkpm.solver.Prescribed` conditions, pressure loads, rigid
-tools); :func:`run` drives them with :func:`~skfem_rkpm.solver.newton_steps`
+:class:`~skfem_rkpm.solvers.newton.Prescribed` conditions, pressure loads, rigid
+tools); :func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`
 and writes, after every converged step, ``history.csv``, ``fields.xdmf``
 and a checkpoint, so an interrupted run keeps everything it finished and
 ``resume=True`` continues from the last step.  Under ``mpiexec`` every rank
@@ -21,13 +21,13 @@ from skfem import (Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2
 from skfem.helpers import dot
 
 from .approximation.basis import RKBasis
-from .distributed import is_root
+from .solvers.petsc import is_root
 from .elasticity import facet_basis
 from .io import FieldWriter, write_history
-from .linsolve import make_solver
+from .solvers.linear import make_solver
 from .mechanics.problem import SolidProblem
 from .scene import SceneError, components, material_from, mesh_from, spacing_radius
-from .solver import Prescribed, newton_steps
+from .solvers.newton import Prescribed, newton_steps
 
 __all__ = ["Simulation", "build", "run"]
 
@@ -189,7 +189,7 @@ class Progress:
 def run(sim, out=None, progress=True, resume=False, log=None):
     """Run a simulation; with ``out`` write results there step by step.
 
-    Returns the :class:`~skfem_rkpm.solver.Result` (history, solutions,
+    Returns the :class:`~skfem_rkpm.solvers.newton.Result` (history, solutions,
     completed flag and message).
     """
     steps = sim.scene["steps"]

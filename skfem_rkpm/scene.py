@@ -224,7 +224,7 @@ SCHEMA = {
         "max_cutbacks": Key("int", 8, check=_non_negative, doc="step halvings allowed"),
         "solver": Key("str", "auto",
                       choices=("auto", "dense", "superlu", "pardiso", "cholmod", "amg"),
-                      doc="linear solver of the Newton iterations (skfem_rkpm.linsolve)"),
+                      doc="linear solver of the Newton iterations (skfem_rkpm.solvers.linear)"),
     },
     "output": {
         "fields": Key("bool", True, doc="write fields.xdmf (+ .h5) for ParaView"),

@@ -15,7 +15,7 @@ from skfem_rkpm.mechanics.contact import (Arc, NodeToSegmentContact, Platen, Pol
 from skfem_rkpm.mechanics.materials import J2Material, linear
 from skfem_rkpm.mechanics.problem import SolidProblem
 from skfem_rkpm.meshes import rectangle
-from skfem_rkpm.solver import Prescribed, newton_steps
+from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
 E, NU = 200e3, 0.3
 LAW = linear(300.0, 2000.0)

@@ -12,7 +12,7 @@ from skfem_rkpm.io import FieldWriter, cell_averages, nodal_displacements, write
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.mechanics.materials import J2Material, perfect
 from skfem_rkpm.mechanics.problem import SolidProblem
-from skfem_rkpm.solver import Prescribed, newton_steps
+from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
 
 @pytest.mark.parametrize("kind", ["rk", "fem"])

@@ -1,4 +1,4 @@
-"""Linear solver backends (skfem_rkpm.linsolve): every installed backend
+"""Linear solver backends (skfem_rkpm.solvers.linear): every installed backend
 against dense numpy solutions on RK and FEM elasticity systems, the choices
 of ``auto``, the message for a missing backend, analysis reuse, and the
 Newton history of a plastic problem with each backend."""
@@ -12,9 +12,9 @@ from skfem import Basis, ElementQuad1, ElementVector
 from skfem.models.elasticity import lame_parameters
 
 from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
-from skfem_rkpm import linsolve
+from skfem_rkpm.solvers import linear as linsolve
 from skfem_rkpm.approximation.constraints import nodal_constraint, solve_constrained
-from skfem_rkpm.linsolve import (BackendUnavailable, NotPositiveDefinite, available,
+from skfem_rkpm.solvers.linear import (BackendUnavailable, NotPositiveDefinite, available,
                                  is_symmetric, make_solver)
 from skfem_rkpm.meshes import rectangle
 
@@ -219,7 +219,7 @@ def test_spd_only_backend_refused_for_declared_non_symmetric():
 def plastic_history(kind, name):
     from skfem_rkpm.mechanics.materials import J2Material, swift
     from skfem_rkpm.mechanics.problem import SolidProblem
-    from skfem_rkpm.solver import Prescribed, newton_steps
+    from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
     mesh = rectangle(1.0, 1.0, 6, 6)
     basis = (RKBasis(mesh, vector=True, support=2.0) if kind == "rk"

@@ -1,4 +1,4 @@
-"""The PETSc backends (skfem_rkpm.distributed): the partition of the rows,
+"""The PETSc backends (skfem_rkpm.solvers.petsc): the partition of the rows,
 the message without petsc4py, solutions against scipy, the Newton history
 of a coarse ring against the default path, and a run on 2 MPI ranks
 (``mpiexec -n 2``) against the serial one.
@@ -21,9 +21,9 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from skfem_rkpm import linsolve
-from skfem_rkpm.distributed import bisection, row_owners, world
-from skfem_rkpm.linsolve import BackendUnavailable, make_solver
+from skfem_rkpm.solvers import linear as linsolve
+from skfem_rkpm.solvers.petsc import bisection, row_owners, world
+from skfem_rkpm.solvers.linear import BackendUnavailable, make_solver
 from skfem_rkpm.runner import build, run
 from skfem_rkpm.scene import builtin_scenes, load_scene
 

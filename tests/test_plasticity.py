@@ -12,7 +12,7 @@ from skfem_rkpm.exact import uniaxial_compression
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.mechanics.materials import J2Material, MaterialState, linear, perfect, swift
 from skfem_rkpm.mechanics.problem import SolidProblem
-from skfem_rkpm.solver import Prescribed, newton_steps
+from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
 E, NU = 200e3, 0.3
 LAWS = {"perfect": perfect(300.0), "linear": linear(300.0, 2000.0),

@@ -17,7 +17,7 @@ from skfem_rkpm.mechanics.materials import Hardening, J2Material, linear, perfec
 from skfem_rkpm.mechanics.problem import NonFiniteError, SolidProblem
 from skfem_rkpm.meshes import load, rectangle
 from skfem_rkpm.approximation.shape import SingularMomentError
-from skfem_rkpm.solver import Prescribed, newton_steps
+from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_patch import linear_field, rk_error  # noqa: E402

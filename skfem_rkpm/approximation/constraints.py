@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem.element import ElementVector
 
-from ..linsolve import make_solver, solve_saddle_point
+from ..solvers.linear import make_solver, solve_saddle_point
 
 __all__ = ["transformation", "solve", "solve_constrained", "linear_solve",
            "Constraint", "nodal_constraint", "weak_constraint"]
@@ -33,11 +33,11 @@ def transformation(basis):
 
 
 def linear_solve(A, b, solver="auto"):
-    """Solve ``A x = b``; ``solver`` is a name or a :class:`~skfem_rkpm.linsolve.Solver`.
+    """Solve ``A x = b``; ``solver`` is a name or a :class:`~skfem_rkpm.solvers.linear.Solver`.
 
     The default picks dense LU when small and sparse LU (SuperLU, minimum
     degree ordering of ``Aᵀ + A``, symmetric mode, COLAMD fallback) or an
-    installed faster backend otherwise; see :mod:`skfem_rkpm.linsolve`.
+    installed faster backend otherwise; see :mod:`skfem_rkpm.solvers.linear`.
     """
     return make_solver(solver).factor(A).solve(b)
 
@@ -90,8 +90,8 @@ def solve_constrained(K, f, C, g, solver="auto"):
 
     ``λ`` are the reactions: the forces the constraints exert, conjugate to
     the constrained nodal values.  ``solver`` is a backend name or a
-    :class:`~skfem_rkpm.linsolve.Solver` kept across calls (to reuse its
-    analysis); see :func:`~skfem_rkpm.linsolve.solve_saddle_point`.
+    :class:`~skfem_rkpm.solvers.linear.Solver` kept across calls (to reuse its
+    analysis); see :func:`~skfem_rkpm.solvers.linear.solve_saddle_point`.
     """
     return solve_saddle_point(make_solver(solver), K, f, C, g)
 

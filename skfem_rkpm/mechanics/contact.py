@@ -57,7 +57,7 @@ tangential traction starts from zero, also when it sticks.
 
 Rigid tools (:class:`Platen`, :class:`Polyline`, :class:`Arc`) move with the
 load factor; :class:`RigidContact` is their contribution to the Newton
-iterations of :func:`skfem_rkpm.solver.newton_steps`.  Contact between two
+iterations of :func:`skfem_rkpm.solvers.newton.newton_steps`.  Contact between two
 deformable bodies of one mesh (node-to-segment, Eq. 4.13-4.19, frictionless)
 is :class:`NodeToSegmentContact`.
 
@@ -1051,7 +1051,7 @@ def _check_finite_traction(traction, X, name):
 class RigidContact:
     """Penalty frictional contact of a body with a rigid moving tool
     (Sec. 4.3, Eq. 4.25-4.29), a contribution for
-    :func:`skfem_rkpm.solver.newton_steps`.
+    :func:`skfem_rkpm.solvers.newton.newton_steps`.
 
     The contact law (Eq. 4.5-4.6) acts at the boundary particles.  With
     ``collocation="nodal"`` it sees the gap and slip of the particle itself
@@ -1161,7 +1161,7 @@ class RigidContact:
         update is ``ĝ + Ĝ δ`` with ``Ĝ = W⁻¹ M B_n``; if that is negative,
         the normal law of Eq. (4.5) acts in the linear model as the force
         ``ω_n Ĝᵀ W ĝ`` plus the stiffness ``ω_n Ĝᵀ W Ĝ``, which
-        :func:`skfem_rkpm.solver.newton_steps` adds before it solves again
+        :func:`skfem_rkpm.solvers.newton.newton_steps` adds before it solves again
         (an active-set iteration).  Returns ``(nodes, f, K)`` (``nodes`` a
         boolean mask of the touching nodes) or ``None`` if no node is
         predicted to touch.

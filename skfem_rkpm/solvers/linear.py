@@ -1,0 +1,668 @@
+"""Sparse linear solvers behind one small interface.
+
+Every Newton iteration ends in a factorization of the tangent (or of the
+saddle-point matrix with the constraints), and RK tangents have 90-150
+nonzeros per row, so the solver decides how large a model can be.  The
+Newton loop calls::
+
+    solver = make_solver("auto")      # once per run
+    solver.factor(A)                  # every iteration
+    x = solver.solve(b)
+
+``factor`` keeps the symbolic analysis (fill-reducing ordering, elimination
+tree) of the last matrix and reuses it when the next matrix has the same
+sparsity pattern and the backend allows it.
+
+Backends (``make_solver(name)``):
+
+``"dense"``
+    LAPACK LU of the dense matrix.  Best for small systems (the paper's ring,
+    352 unknowns with 43 % nonzeros).
+``"superlu"``
+    scipy's SuperLU with the minimum-degree ordering of ``Aᵀ + A`` in
+    symmetric mode, pivoting off the diagonal only where a pivot is below
+    1 % of its column; COLAMD with partial pivoting if the residual is poor.
+    Always available; handles any nonsingular matrix.
+``"pardiso"``
+    MKL PARDISO through ``pypardiso`` (``pip install skfem-rkpm[pardiso]``,
+    about 1 GB with MKL).  Any nonsingular matrix; analysis reused.
+``"cholmod"``
+    CHOLMOD supernodal Cholesky through ``scikit-sparse``
+    (``pip install skfem-rkpm[cholmod]`` after
+    ``apt-get install libsuitesparse-dev``).  Symmetric positive definite
+    matrices only; analysis reused.
+``"amg"``
+    Smoothed-aggregation AMG (``pyamg``, ``pip install skfem-rkpm[amg]``)
+    as the preconditioner of CG (symmetric) or GMRES (non-symmetric),
+    iterated to a relative residual of ``rtol`` (1e-12).  Symmetric positive
+    definite matrices; the hierarchy is rebuilt at every ``factor``.
+``"petsc"``, ``"petsc-gamg"``
+    PETSc KSP through ``petsc4py`` (``pip install skfem-rkpm[petsc]``, a
+    source build): MUMPS LU, or GAMG + CG/GMRES (positive definite only),
+    distributed over the ranks of a run started with ``mpiexec``; see
+    :mod:`skfem_rkpm.solvers.petsc`.
+``"auto"``
+    Picks one of the above (never PETSc) at every ``factor`` from the size, the symmetry
+    and what is installed; :meth:`Solver.describe` says what it picked.
+
+SPD-only backends (``cholmod``, ``amg``) cannot factor the symmetric
+indefinite saddle-point matrix of :func:`solve_saddle_point`; there the
+constraints are handled by an augmented Lagrangian instead (see that
+function).
+"""
+
+import importlib
+import time
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+__all__ = ["make_solver", "available", "Solver", "BackendUnavailable",
+           "solve_saddle_point", "is_symmetric", "DENSE_LIMIT", "BACKENDS"]
+
+#: systems up to this size are solved with dense LU by ``"auto"`` (measured:
+#: SuperLU wins from about 600 unknowns on, even for RK tangents with 200
+#: nonzeros per row)
+DENSE_LIMIT = 500
+
+#: ``"auto"`` takes PARDISO (if installed) only above this size: measured on one
+#: core, SuperLU is faster up to about 1e4 unknowns, and PARDISO with several
+#: threads is not bitwise reproducible from run to run
+PARDISO_LIMIT = 20000
+
+#: the backends, the Python module each needs and the extra that installs it
+BACKENDS = {
+    "dense": (None, None),
+    "superlu": (None, None),
+    "pardiso": ("pypardiso", "pardiso"),
+    "cholmod": ("sksparse.cholmod", "cholmod"),
+    "amg": ("pyamg", "amg"),
+    "petsc": ("petsc4py", "petsc"),
+    "petsc-gamg": ("petsc4py", "petsc"),
+}
+
+_INSTALL_NOTES = {
+    "cholmod": " (scikit-sparse compiles against SuiteSparse: first "
+               "`apt-get install libsuitesparse-dev`; on Debian 12 pin "
+               "`scikit-sparse==0.4.16`)",
+    "pardiso": " (installs MKL, about 1 GB)",
+    "petsc": " (petsc4py has no wheel: pip builds PETSc from source, about 20 minutes; "
+             "for MPI put an MPI compiler wrapper (mpicc) on PATH before the build, and "
+             "for MUMPS pass a MUMPS installation in PETSC_CONFIGURE_OPTIONS; see "
+             "docs/performance.md, \"PETSc and MPI\"; on Debian 12 `bash .ci/run-mpi` "
+             "installs it all)",
+}
+_INSTALL_NOTES["petsc-gamg"] = _INSTALL_NOTES["petsc"]
+
+
+class BackendUnavailable(ImportError):
+    """An optional solver backend is not installed."""
+
+
+def _import_backend(name):
+    module, extra = BACKENDS[name]
+    if module is None:
+        return None
+    try:
+        return importlib.import_module(module)
+    except ImportError as err:
+        raise BackendUnavailable(
+            f"the linear solver {name!r} needs the Python package {module.split('.')[0]!r}, "
+            f"which is not installed ({err}); install it with "
+            f"`pip install skfem-rkpm[{extra}]`{_INSTALL_NOTES.get(name, '')}, or choose "
+            f"another solver: {', '.join(available())} are installed") from err
+
+
+def available():
+    """Names of the backends that can be used here (``"auto"`` not included)."""
+    names = []
+    for name, (module, _) in BACKENDS.items():
+        if module is None:
+            names.append(name)
+            continue
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            continue
+        names.append(name)
+    return names
+
+
+def is_symmetric(A, rtol=1e-12):
+    """True if ``|A - Aᵀ| ≤ rtol · |A|`` entrywise in the max norm."""
+    if sp.issparse(A):
+        A = sp.csr_matrix(A)
+        diff = abs(A - A.T)
+        scale = abs(A).max() if A.nnz else 0.0
+        return (diff.max() if diff.nnz else 0.0) <= rtol * scale
+    A = np.asarray(A)
+    return np.abs(A - A.T).max(initial=0.0) <= rtol * np.abs(A).max(initial=0.0)
+
+
+class Solver:
+    """Factor a square matrix, then solve with it.
+
+    Subclasses implement ``_analyze(A)`` (symbolic work, pattern only),
+    ``_factor(A)`` (numeric work) and ``_solve(b)``.  ``stats`` counts the
+    analyses and factorizations and records the seconds spent.
+    """
+
+    name = "?"
+    #: the backend needs a symmetric positive definite matrix
+    spd_only = False
+
+    def __init__(self, symmetric=None, **options):
+        self.symmetric = symmetric
+        self.options = options
+        self.A = None
+        self._pattern = None
+        self.stats = dict(analyses=0, factorizations=0, solves=0,
+                          analyze_seconds=0.0, factor_seconds=0.0, solve_seconds=0.0)
+
+    # -- interface -----------------------------------------------------
+    def factor(self, A):
+        """Factor ``A``; reuse the symbolic analysis if the pattern is unchanged."""
+        A = _canonical(A)
+        if A.shape[0] != A.shape[1]:
+            raise ValueError(f"the matrix must be square, it is {A.shape[0]} x {A.shape[1]}")
+        if not self._same_pattern(A):
+            clock = time.perf_counter()
+            self._analyze(A)
+            self.stats["analyses"] += 1
+            self.stats["analyze_seconds"] += time.perf_counter() - clock
+            self._pattern = (A.shape, A.indptr.copy(), A.indices.copy())
+        clock = time.perf_counter()
+        self.A = A
+        self._factor(A)
+        self.stats["factorizations"] += 1
+        self.stats["factor_seconds"] += time.perf_counter() - clock
+        return self
+
+    def solve(self, b):
+        """Solve ``A x = b`` with the last factored ``A`` (``b`` 1-D or 2-D)."""
+        if self.A is None:
+            raise RuntimeError("call factor(A) before solve(b)")
+        b = np.asarray(b, dtype=float)
+        if b.shape[0] != self.A.shape[0]:
+            raise ValueError(f"the right-hand side has {b.shape[0]} rows, the matrix "
+                             f"{self.A.shape[0]}")
+        clock = time.perf_counter()
+        x = self._solve(b)
+        self.stats["solves"] += 1
+        self.stats["solve_seconds"] += time.perf_counter() - clock
+        return x
+
+    def describe(self):
+        """One line: the backend and its settings."""
+        return self.name
+
+    def reset(self):
+        """Forget the stored analysis and factor."""
+        self.A = None
+        self._pattern = None
+
+    # -- helpers -------------------------------------------------------
+    def _same_pattern(self, A):
+        if self._pattern is None:
+            return False
+        shape, indptr, indices = self._pattern
+        return (shape == A.shape and len(indices) == len(A.indices)
+                and np.array_equal(indptr, A.indptr) and np.array_equal(indices, A.indices))
+
+    def _analyze(self, A):
+        pass
+
+    def __repr__(self):
+        return f"<{type(self).__name__}: {self.describe()}>"
+
+
+def _canonical(A):
+    if not sp.issparse(A):
+        A = sp.csr_matrix(np.asarray(A, dtype=float))
+    A = sp.csr_matrix(A, dtype=float)
+    A.sum_duplicates()
+    A.sort_indices()
+    return A
+
+
+def _refine(A, b, x, solve, steps=2, rtol=1e-13):
+    """Iterative refinement: at most ``steps`` corrections while the residual is large."""
+    nb = np.linalg.norm(b)
+    for _ in range(steps):
+        r = b - A @ x
+        if np.linalg.norm(r) <= rtol * nb:
+            break
+        x = x + solve(r)
+    return x
+
+
+class DenseLU(Solver):
+    """LAPACK LU with partial pivoting of the dense matrix."""
+
+    name = "dense"
+
+    def _factor(self, A):
+        self._lu = scipy.linalg.lu_factor(A.toarray(), check_finite=False)
+
+    def _solve(self, b):
+        return scipy.linalg.lu_solve(self._lu, b, check_finite=False)
+
+    def describe(self):
+        n = self.A.shape[0] if self.A is not None else "?"
+        return f"dense LU (LAPACK, n = {n})"
+
+
+class SuperLU(Solver):
+    """SuperLU, MMD ordering of ``Aᵀ + A`` in symmetric mode; COLAMD fallback.
+
+    Measured on an RK elasticity saddle-point matrix with 8.5k unknowns and
+    217 nonzeros per row: 0.45 s, against 14 s with SuperLU's default partial
+    pivoting, whose row exchanges destroy the ordering (38M instead of 7M
+    factor entries).  scipy exposes no separate symbolic phase, so nothing
+    is reused between factorizations.
+    """
+
+    name = "superlu"
+
+    def _factor(self, A):
+        self._csc = A.tocsc()
+        self._lu = splu(self._csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
+                        options=dict(SymmetricMode=True))
+        self.fallback = False
+
+    def _solve(self, b):
+        x = self._lu.solve(b)
+        res = np.linalg.norm(self._csc @ x - b)
+        if np.isfinite(res) and res <= 1e-10 * np.linalg.norm(b):
+            return x
+        if not self.fallback:  # a poor pivot sequence: partial pivoting instead
+            self._lu = splu(self._csc, permc_spec="COLAMD")
+            self.fallback = True
+        return self._lu.solve(b)
+
+    def describe(self):
+        how = ("COLAMD, partial pivoting" if getattr(self, "fallback", False)
+               else "MMD(AᵀA+A), symmetric mode, pivot threshold 0.01")
+        return f"SuperLU ({how})"
+
+
+class Pardiso(Solver):
+    """MKL PARDISO (``pypardiso``): analysis (phase 11) once per pattern,
+    numeric factorization (phase 22) per matrix, solve (phase 33).
+
+    Uses the real unsymmetric mode (``mtype = 11``, the one pypardiso is
+    tested with) for every matrix, with pypardiso's defaults: nested
+    dissection ordering, scaling and weighted matching, pivot perturbation
+    1e-13.  Perturbed pivots are corrected by two steps of iterative
+    refinement in double precision.
+    """
+
+    name = "pardiso"
+
+    def __init__(self, symmetric=None, **options):
+        super().__init__(symmetric, **options)
+        self._pypardiso = _import_backend("pardiso")
+        self._ps = None
+
+    def _analyze(self, A):
+        if self._ps is not None:
+            self._ps.free_memory(everything=True)
+        self._ps = self._pypardiso.PyPardisoSolver(mtype=11)
+        self._ps._check_A(A)
+        self._ps.set_phase(11)
+        self._ps._call_pardiso(A, np.zeros((A.shape[0], 1)))
+
+    def _factor(self, A):
+        self._ps._check_A(A)
+        self._ps.set_phase(22)
+        self._ps._call_pardiso(A, np.zeros((A.shape[0], 1)))
+
+    def _phase33(self, b):
+        self._ps.set_phase(33)
+        return self._ps._call_pardiso(self.A, self._ps._check_b(self.A, b))
+
+    def _solve(self, b):
+        return _refine(self.A, b, self._phase33(b), self._phase33)
+
+    def describe(self):
+        return "MKL PARDISO (pypardiso, real unsymmetric mode, analysis reused)"
+
+    def __del__(self):
+        try:
+            if self._ps is not None:
+                self._ps.free_memory(everything=True)
+        except Exception:
+            pass
+
+
+class NotPositiveDefinite(np.linalg.LinAlgError):
+    """An SPD-only backend met a matrix that is not positive definite."""
+
+
+class Cholmod(Solver):
+    """CHOLMOD supernodal Cholesky (``scikit-sparse``); analysis reused.
+
+    Needs a symmetric positive definite matrix: friction tangents (not
+    symmetric) and saddle-point matrices (indefinite) are refused.
+    """
+
+    name = "cholmod"
+    spd_only = True
+
+    def __init__(self, symmetric=None, **options):
+        super().__init__(symmetric, **options)
+        self._cholmod = _import_backend("cholmod")
+
+    def _analyze(self, A):
+        self._symbolic = self._cholmod.analyze(A.tocsc())
+
+    def _check_symmetric(self, A):
+        if self.symmetric is None and not is_symmetric(A):
+            asym = abs(A - A.T).max() / abs(A).max()
+            raise NotPositiveDefinite(
+                f"CHOLMOD needs a symmetric matrix; this one has |A - Aᵀ| / |A| = "
+                f"{asym:.1e} (RK bases with VCI integration and frictional contact give "
+                f"non-symmetric tangents); use solver 'superlu', 'pardiso' or 'auto'")
+
+    def _factor(self, A):
+        self._check_symmetric(A)
+        try:
+            self._symbolic.cholesky_inplace(A.tocsc())
+        except self._cholmod.CholmodNotPositiveDefiniteError as err:
+            raise NotPositiveDefinite(
+                f"CHOLMOD needs a symmetric positive definite matrix ({err}); use "
+                f"solver 'superlu', 'pardiso' or 'auto' for indefinite or "
+                f"non-symmetric systems") from err
+        self._L = self._symbolic
+
+    def _solve(self, b):
+        return _refine(self.A, b, self._L(b), self._L, steps=1)
+
+    def describe(self):
+        return "CHOLMOD Cholesky (scikit-sparse, analysis reused)"
+
+
+class AMG(Solver):
+    """Smoothed-aggregation AMG (pyamg) preconditioning CG or GMRES.
+
+    CG for symmetric matrices, GMRES otherwise (symmetry is checked unless
+    declared).  Options: ``rtol`` (relative residual, default 1e-12), ``maxiter``
+    (default 2000), ``near_nullspace`` (columns of rigid-body modes, e.g. for
+    elasticity; default constants).  The hierarchy is rebuilt at every
+    ``factor``: pyamg has no separate symbolic phase.
+    """
+
+    name = "amg"
+    spd_only = True
+
+    def __init__(self, symmetric=None, **options):
+        super().__init__(symmetric, **options)
+        self._pyamg = _import_backend("amg")
+        self.iterations = []
+
+    def _factor(self, A):
+        B = self.options.get("near_nullspace")
+        self._sym = self.symmetric if self.symmetric is not None else is_symmetric(A)
+        self._ml = self._pyamg.smoothed_aggregation_solver(
+            A, B=B, symmetry="symmetric" if self._sym else "nonsymmetric", max_coarse=500)
+
+    def _solve(self, b):
+        rtol = self.options.get("rtol", 1e-12)
+        maxiter = self.options.get("maxiter", 2000)
+        accel = "cg" if self._sym else "gmres"
+        if b.ndim == 2:
+            return np.column_stack([self._solve(col) for col in b.T])
+        nb = np.linalg.norm(b)
+        if nb == 0:
+            return np.zeros_like(b)
+        if accel == "gmres":
+            maxiter = min(maxiter, len(b))  # pyamg's limit for GMRES
+        x = np.zeros_like(b)
+        its = 0
+        for _ in range(4):  # restarts on the true residual (GMRES reports a preconditioned one)
+            r = b - self.A @ x
+            true = np.linalg.norm(r)
+            if true <= 10 * rtol * nb:
+                break
+            residuals = []
+            x = x + self._ml.solve(r, tol=rtol * nb / true, maxiter=maxiter, accel=accel,
+                                   residuals=residuals)
+            its += len(residuals) - 1
+        else:
+            raise np.linalg.LinAlgError(
+                f"AMG-{accel.upper()} did not reach the relative residual {rtol:g} "
+                f"(reached {true / nb:.2e} after {its} iterations); the matrix may not be "
+                f"positive definite: use solver 'superlu' or 'pardiso'")
+        self.iterations.append(its)
+        return x
+
+    def describe(self):
+        accel = "CG" if getattr(self, "_sym", True) else "GMRES"
+        its = f", last solve {self.iterations[-1]} iterations" if self.iterations else ""
+        return (f"smoothed-aggregation AMG + {accel} (pyamg, rtol "
+                f"{self.options.get('rtol', 1e-12):g}{its})")
+
+
+_CLASSES = {"dense": DenseLU, "superlu": SuperLU, "pardiso": Pardiso,
+            "cholmod": Cholmod, "amg": AMG}
+
+
+class Auto(Solver):
+    """Chooses a backend at every :meth:`factor`.
+
+    * ``n ≤ DENSE_LIMIT``: dense LU;
+    * above ``PARDISO_LIMIT`` unknowns, PARDISO if installed;
+    * otherwise, for symmetric matrices known to be positive definite
+      (``spd=True``, as in :func:`solve_saddle_point`), CHOLMOD if installed;
+    * otherwise SuperLU.
+
+    AMG is never picked: it is an iterative method whose cost depends on
+    the problem; ask for it by name.  Backends are kept between calls so
+    that each reuses its analysis.
+    """
+
+    name = "auto"
+
+    def __init__(self, symmetric=None, **options):
+        super().__init__(symmetric, **options)
+        self._backends = {}
+        self.current = None
+        self.installed = available()
+
+    def choose(self, A, spd=False):
+        """The backend name for the matrix ``A`` (``spd``: the caller knows it
+        is positive definite if it is symmetric)."""
+        n = A.shape[0]
+        if n <= DENSE_LIMIT:
+            return "dense"
+        if "pardiso" in self.installed and n > PARDISO_LIMIT:
+            return "pardiso"
+        if spd and "cholmod" in self.installed:
+            sym = self.symmetric if self.symmetric is not None else is_symmetric(A)
+            if sym:
+                return "cholmod"
+        return "superlu"
+
+    def backend(self, name):
+        """The kept instance of backend ``name``; it becomes the current one."""
+        if name not in self._backends:
+            self._backends[name] = _CLASSES[name](self.symmetric, **self.options)
+        self.current = self._backends[name]
+        return self.current
+
+    def factor(self, A, spd=False):
+        """Factor ``A`` with the chosen backend; if CHOLMOD finds ``A`` not
+        positive definite, SuperLU instead."""
+        A = _canonical(A)
+        try:
+            self.backend(self.choose(A, spd)).factor(A)
+        except NotPositiveDefinite:
+            self.backend("superlu").factor(A)
+        self.A = A
+        return self
+
+    def _solve(self, b):
+        return self.current.solve(b)
+
+    @property
+    def spd_only(self):
+        return self.current is not None and self.current.spd_only
+
+    def describe(self):
+        if self.current is None:
+            return "auto (nothing factored yet)"
+        return f"auto: {self.current.describe()}"
+
+
+def make_solver(name="auto", symmetric=None, **options):
+    """A :class:`Solver` by name.
+
+    Parameters
+    ----------
+    name : str or Solver
+        ``"auto"`` or one of :data:`BACKENDS` (``"dense"``, ``"superlu"``,
+        ``"pardiso"``, ``"cholmod"``, ``"amg"``, ``"petsc"``,
+        ``"petsc-gamg"``); a :class:`Solver` is returned as it is.  ``None``
+        means ``"auto"``.
+    symmetric : bool, optional
+        What the caller knows of the matrices to come: ``False`` for
+        frictional contact tangents, ``True`` for symmetric ones; ``None``
+        lets ``auto`` check when it matters.
+    **options
+        Backend options (``amg``: ``rtol``, ``maxiter``, ``near_nullspace``;
+        ``petsc``, ``petsc-gamg``: ``points``, the dof locations used to
+        partition the rows among MPI ranks, and ``rtol``, ``maxiter`` for
+        GAMG).
+
+    Raises
+    ------
+    BackendUnavailable
+        The backend's package is missing; the message names the extra to
+        install, e.g. ``pip install skfem-rkpm[pardiso]``.
+    """
+    if isinstance(name, Solver):
+        return name
+    name = "auto" if name is None else str(name).lower()
+    if name == "auto":
+        return Auto(symmetric, **options)
+    if name not in _CLASSES:
+        raise ValueError(f"unknown linear solver {name!r}; choose one of "
+                         f"auto, {', '.join(_CLASSES)}")
+    if symmetric is False and _CLASSES[name].spd_only and name not in ("amg", "petsc-gamg"):
+        raise ValueError(f"the linear solver {name!r} needs symmetric positive definite "
+                         f"matrices, and these are declared non-symmetric; use "
+                         f"'superlu', 'pardiso' or 'auto'")
+    return _CLASSES[name](symmetric, **options)
+
+
+def _penalty(K, C):
+    """Penalty factor ρ of the augmented Lagrangian: 10 × diag(K) / diag(CᵀC)."""
+    kd = np.abs(K.diagonal()).max(initial=0.0)
+    cd = np.asarray(C.multiply(C).sum(axis=0)).ravel().max(initial=0.0)
+    return 10.0 * (kd if kd > 0 else 1.0) / (cd if cd > 0 else 1.0)
+
+
+def solve_saddle_point(solver, K, f, C, g, rtol=1e-13, maxiter=200):
+    """Solve ``K d = f + Cᵀ λ``, ``C d = g`` with ``solver``; return ``d``, ``λ``.
+
+    Backends that factor indefinite matrices (dense, SuperLU, PARDISO) solve
+    the saddle-point system ``[[K, Cᵀ], [C, 0]] [d; -λ] = [f; g]`` directly.
+
+    SPD-only backends (CHOLMOD, AMG) use the augmented Lagrangian: with
+    ``K_ρ = K + ρ CᵀC``, symmetric positive definite whenever the
+    constraints remove the rigid-body modes of ``K``, the system becomes
+    ``K_ρ d = f + ρ Cᵀ g + Cᵀ λ`` and ``λ`` solves the Schur complement
+    system ``C K_ρ⁻¹ Cᵀ λ = g - C K_ρ⁻¹ (f + ρ Cᵀ g)`` by conjugate
+    gradients, one solve with the factored ``K_ρ`` per iteration.  The
+    eigenvalues of ``(C K_ρ⁻¹ Cᵀ)⁻¹`` lie in ``[ρ, ρ + μ]`` with ``μ`` of
+    the order of ``|K|``, so with ``ρ = 10 |K| / |CᵀC|`` CG needs a handful
+    of iterations, independent of the mesh.  ``λ`` converges to ``rtol``
+    relative to ``|f| + ρ |g|``.
+    """
+    N = K.shape[0]
+    K = _canonical(K)
+    m = C.shape[0]
+    if m == 0:
+        _factor(solver, K, spd=True)
+        return solver.solve(f), np.zeros(0)
+    C = sp.csr_matrix(C)
+    backend = solver
+    if isinstance(solver, Auto):
+        name = solver.choose(sp.csr_matrix((N + m, N + m)))
+        if name == "superlu" and solver.choose(K, spd=True) == "cholmod":
+            name = "cholmod"  # CHOLMOD on K + ρCᵀC beats SuperLU on the KKT matrix
+        backend = solver.backend(name)
+    if backend.spd_only:
+        rho = _penalty(K, C)
+        Krho = _canonical(K + rho * (C.T @ C))
+        try:
+            backend.factor(Krho)
+        except NotPositiveDefinite:
+            if backend is solver:
+                raise
+            backend = solver.backend("superlu")  # auto: the tangent is indefinite
+        else:
+            solver.A = Krho
+            return _augmented_lagrangian(backend, Krho, rho, f, C, g, rtol, maxiter)
+    A = _canonical(sp.bmat([[K, C.T], [C, None]]))
+    backend.factor(A)
+    solver.A = A
+    sol = backend.solve(np.concatenate([f, g]))
+    return sol[:N], -sol[N:]
+
+
+def _augmented_lagrangian(solver, Krho, rho, f, C, g, rtol, maxiter):
+    """CG on the Schur complement ``C K_ρ⁻¹ Cᵀ λ = g - C K_ρ⁻¹ (f + ρ Cᵀ g)``."""
+    m = C.shape[0]
+    rhs = f + rho * (C.T @ g)
+    d0 = solver.solve(rhs)
+    lam = np.zeros(m)
+    r = g - C @ d0
+    stop = rtol * max(np.linalg.norm(g), np.linalg.norm(C @ d0), 1e-300)
+    p = r.copy()
+    rr = r @ r
+    for _ in range(maxiter):
+        if np.sqrt(rr) <= stop:
+            break
+        Sp = C @ solver.solve(C.T @ p)
+        alpha = rr / (p @ Sp)
+        lam += alpha * p
+        r -= alpha * Sp
+        rr_new = r @ r
+        p = r + (rr_new / rr) * p
+        rr = rr_new
+    else:
+        raise np.linalg.LinAlgError(
+            f"the augmented Lagrangian iterations did not converge in {maxiter} "
+            f"iterations (constraint residual {np.sqrt(rr):.2e}, wanted {stop:.2e}); the "
+            f"tangent may not be positive definite on the constrained space: use solver "
+            f"'superlu' or 'pardiso'")
+    return solver.solve(rhs + C.T @ lam), lam
+
+
+def _factor(solver, A, spd):
+    if isinstance(solver, Auto):
+        solver.factor(A, spd=spd)
+    else:
+        solver.factor(A)
+
+
+# the PETSc backends live in .distributed (which imports Solver from here)
+from .petsc import PETScGAMG, PETScLU  # noqa: E402
+
+_CLASSES.update({"petsc": PETScLU, "petsc-gamg": PETScGAMG})
+
+
+def _register_scene_choices():
+    """Let the scene key ``steps.solver`` accept every backend of :data:`BACKENDS`."""
+    import dataclasses
+
+    from .. import scene
+
+    spec = scene.SCHEMA["steps"]["solver"]
+    scene.SCHEMA["steps"]["solver"] = dataclasses.replace(spec, choices=("auto", *BACKENDS))
+
+
+_register_scene_choices()

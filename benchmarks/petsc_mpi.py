@@ -57,8 +57,8 @@ import scipy.sparse as sp  # noqa: E402
 
 def ring(cells=15, overrides=()):
     """The ring scene with ``cells`` cells in x (the paper: 15)."""
-    from skfem_rkpm import runner
-    from skfem_rkpm.scene import builtin_scenes, load_scene
+    from skfem_rkpm.runs import runner
+    from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
     ny = int(round(cells * 10 / 15))
     settings = [f"geometry.divisions=[{cells},{ny}]",

@@ -59,8 +59,8 @@ PARTS = ("kinematics", "material", "assembly", "F-bar", "evaluate", "contact",
 
 
 def build(method, overrides=()):
-    from skfem_rkpm import runner
-    from skfem_rkpm.scene import builtin_scenes, load_scene
+    from skfem_rkpm.runs import runner
+    from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
     scene = load_scene(builtin_scenes()["ring"],
                        ["tools.platen.friction=stick", *overrides])
@@ -147,7 +147,7 @@ def time_parts(sim, d, t, C, repeat):
 
 def full_run(method, overrides=()):
     """The whole stick ring: wall seconds, iterations, force history, result."""
-    from skfem_rkpm import runner
+    from skfem_rkpm.runs import runner
 
     sim = build(method, overrides)
     calls = [0]

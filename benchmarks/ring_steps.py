@@ -10,8 +10,8 @@ Prints a Markdown table.
 import argparse
 import time
 
-from skfem_rkpm.runner import build, run
-from skfem_rkpm.scene import builtin_scenes, load_scene
+from skfem_rkpm.runs.runner import build, run
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
 
 def ring(method, steps, friction):

@@ -52,7 +52,7 @@ from matplotlib.collections import PolyCollection  # noqa: E402
 from skfem import Basis, ElementQuad1, ElementVector  # noqa: E402
 
 from skfem_rkpm import RKBasis  # noqa: E402
-from skfem_rkpm.io import (FieldWriter, cell_averages, nodal_displacements,  # noqa: E402
+from skfem_rkpm.runs.io import (FieldWriter, cell_averages, nodal_displacements,  # noqa: E402
                            write_history)
 from skfem_rkpm.mechanics.contact import Platen, RigidContact  # noqa: E402
 from skfem_rkpm.mechanics.materials import J2Material, swift  # noqa: E402

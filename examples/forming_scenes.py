@@ -24,11 +24,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from skfem_rkpm.io import nodal_displacements  # noqa: E402
-from skfem_rkpm.plot import plot_deformed  # noqa: E402
-from skfem_rkpm.runner import build, run  # noqa: E402
-from skfem_rkpm.scene import builtin_scenes, load_scene  # noqa: E402
-from skfem_rkpm.sheet import sheet_strains  # noqa: E402
+from skfem_rkpm.runs.io import nodal_displacements  # noqa: E402
+from skfem_rkpm.runs.plot import plot_deformed  # noqa: E402
+from skfem_rkpm.runs.runner import build, run  # noqa: E402
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene  # noqa: E402
+from skfem_rkpm.runs.sheet import sheet_strains  # noqa: E402
 
 RP, CD, RD, H = 50.8, 59.18, 6.35, 1.0  # punch, die opening, die shoulder, sheet (mm)
 

@@ -32,10 +32,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from skfem_rkpm.io import nodal_displacements  # noqa: E402
-from skfem_rkpm.plot import nodal_plastic_strain, plot_deformed  # noqa: E402
-from skfem_rkpm.runner import build, run  # noqa: E402
-from skfem_rkpm.scene import builtin_scenes, load_scene  # noqa: E402
+from skfem_rkpm.runs.io import nodal_displacements  # noqa: E402
+from skfem_rkpm.runs.plot import nodal_plastic_strain, plot_deformed  # noqa: E402
+from skfem_rkpm.runs.runner import build, run  # noqa: E402
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene  # noqa: E402
 
 FRICTIONS = ["0.0", "0.15", "0.3", "stick"]
 HEIGHT, INNER_RADIUS = 20.0, 30.0  # quarter model: mid-plane to contact face

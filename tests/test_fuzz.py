@@ -29,8 +29,8 @@ from skfem_rkpm import RKBasis
 from skfem_rkpm.mechanics.contact import Arc, Platen, Polyline
 from skfem_rkpm.mechanics.materials import J2Material, linear, perfect, swift
 from skfem_rkpm.meshes import gmsh_rectangle, graded_rectangle, load, rectangle
-from skfem_rkpm.runner import build, run
-from skfem_rkpm.scene import SCHEMA, SceneError, builtin_scenes, load_scene, parse_scene
+from skfem_rkpm.runs.runner import build, run
+from skfem_rkpm.runs.scene import SCHEMA, SceneError, builtin_scenes, load_scene, parse_scene
 from skfem_rkpm.approximation.shape import SingularMomentError, rk_shape_functions
 
 FUZZ = settings(max_examples=60, deadline=None, derandomize=True, database=None,
@@ -288,7 +288,7 @@ def test_random_bytes_scene_file(tmp_path_factory, data):
 def test_bugs_found_by_fuzzing_are_scene_errors(setting, message):
     """Each of these once passed the reader (and then crashed or built a
     NaN model) or raised a TypeError."""
-    from skfem_rkpm.scene import apply_setting
+    from skfem_rkpm.runs.scene import apply_setting
 
     with pytest.raises(SceneError) as info:
         parse_scene(apply_setting(RING, setting), "ring.toml")

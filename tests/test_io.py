@@ -8,7 +8,7 @@ import pytest
 from skfem import Basis, ElementQuad1, ElementVector
 
 from skfem_rkpm import RKBasis
-from skfem_rkpm.io import FieldWriter, cell_averages, nodal_displacements, write_history
+from skfem_rkpm.runs.io import FieldWriter, cell_averages, nodal_displacements, write_history
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.mechanics.materials import J2Material, perfect
 from skfem_rkpm.mechanics.problem import SolidProblem

@@ -24,8 +24,8 @@ from scipy.sparse.linalg import spsolve
 from skfem_rkpm.solvers import linear as linsolve
 from skfem_rkpm.solvers.petsc import bisection, row_owners, world
 from skfem_rkpm.solvers.linear import BackendUnavailable, make_solver
-from skfem_rkpm.runner import build, run
-from skfem_rkpm.scene import builtin_scenes, load_scene
+from skfem_rkpm.runs.runner import build, run
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
 # the coarse ring of tests/test_ring.py in 20 load steps: with 4 or 5 the first
 # step takes 13-18 iterations whose contact decisions flip on differences of
@@ -205,7 +205,7 @@ def test_two_mpi_ranks_give_the_serial_history(tmp_path):
         pytest.skip(f"{mpiexec()} does not start PETSc on 2 ranks (another MPI than "
                     f"PETSc's? set SKFEM_RKPM_MPIEXEC): {probe.stdout!r} {probe.stderr[-500:]!r}")
     settings = [arg for s in RING for arg in ("--set", s)]
-    command = [sys.executable, "-m", "skfem_rkpm.cli", "run", "ring", *settings, "--quiet"]
+    command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", "ring", *settings, "--quiet"]
     # serial: the default path (dense LU at this size)
     serial = subprocess.run([*command, "--out", str(tmp_path / "serial")],
                             capture_output=True, text=True, env=env, timeout=600)

@@ -11,8 +11,8 @@ import pytest
 
 from skfem_rkpm.exact import uniaxial_compression
 from skfem_rkpm.mechanics.materials import perfect
-from skfem_rkpm.runner import build, run
-from skfem_rkpm.scene import builtin_scenes, load_scene
+from skfem_rkpm.runs.runner import build, run
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
 COARSE = ["geometry.divisions=[6,4]", "discretization.support=12.0",
           "discretization.quadrature=4", "steps.count=5", "output.fields=false",

@@ -5,9 +5,9 @@ import csv
 import numpy as np
 import pytest
 
-import skfem_rkpm.runner as runner
-from skfem_rkpm.cli import main
-from skfem_rkpm.scene import parse_scene
+import skfem_rkpm.runs.runner as runner
+from skfem_rkpm.runs.cli import main
+from skfem_rkpm.runs.scene import parse_scene
 
 BLOCK = """
 [model]
@@ -45,7 +45,7 @@ points = { corner = [1.0, 1.0] }
 
 @pytest.mark.parametrize("method", ["rkpm", "fem"])
 def test_run_writes_history_fields_and_figures(tmp_path, method):
-    from skfem_rkpm.plot import save_run_figures
+    from skfem_rkpm.runs.plot import save_run_figures
 
     sim = runner.build(parse_scene(BLOCK), method)
     result = runner.run(sim, tmp_path, progress=False)
@@ -107,7 +107,7 @@ def test_progress_prints_one_line_per_tenth_of_the_load_when_not_a_terminal():
     import io
     from types import SimpleNamespace
 
-    from skfem_rkpm.runner import Progress
+    from skfem_rkpm.runs.runner import Progress
 
     stream = io.StringIO()
     bar = Progress(stream)

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from skfem_rkpm.runner import build
-from skfem_rkpm.scene import (SCHEMA, SceneError, apply_setting, builtin_scenes,
+from skfem_rkpm.runs.runner import build
+from skfem_rkpm.runs.scene import (SCHEMA, SceneError, apply_setting, builtin_scenes,
                               load_scene, parse_scene, schema_markdown)
 
 GOOD = """
@@ -64,7 +64,7 @@ def test_missing_material_section_and_bad_toml():
 
 
 def test_support_too_small_is_reported_with_the_dilation_that_works():
-    from skfem_rkpm.runner import build
+    from skfem_rkpm.runs.runner import build
     from skfem_rkpm.approximation.shape import SingularMomentError
 
     scene = parse_scene(GOOD + "\n[discretization]\ndilation = 0.6\n", "block.toml")
@@ -76,7 +76,7 @@ def test_support_radius_too_small_is_reported_as_a_growth_factor():
     """With ``discretization.support`` (a radius, not a multiple of the
     spacing) the message gives the factor the radius must grow by instead
     of a normalized support the scene does not use."""
-    from skfem_rkpm.runner import build
+    from skfem_rkpm.runs.runner import build
     from skfem_rkpm.approximation.shape import SingularMomentError
 
     scene = parse_scene(GOOD + "\n[discretization]\nsupport = 0.05\n", "block.toml")

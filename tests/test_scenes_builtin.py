@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import skfem_rkpm
-from skfem_rkpm.io import nodal_displacements
-from skfem_rkpm.runner import build, run
-from skfem_rkpm.scene import SceneError, builtin_scenes, load_scene, parse_scene
-from skfem_rkpm.sheet import sheet_strains
+from skfem_rkpm.runs.io import nodal_displacements
+from skfem_rkpm.runs.runner import build, run
+from skfem_rkpm.runs.scene import SceneError, builtin_scenes, load_scene, parse_scene
+from skfem_rkpm.runs.sheet import sheet_strains
 
 # coarse sheet: 17 x 3 particles (cells up to 7.5 x 0.5 mm: the dilation
 # must grow to 2 for every Gauss point to see two particle columns), 4 mm of
@@ -94,7 +94,7 @@ nu = 0.3
 
 
 def test_piecewise_divisions_place_the_particles():
-    from skfem_rkpm.scene import mesh_from
+    from skfem_rkpm.runs.scene import mesh_from
 
     mesh = mesh_from(parse_scene(SEGMENTED, "sheet.toml")["geometry"])
     np.testing.assert_allclose(np.unique(mesh.p[0]), [0, 1, 2, 3, 4, 7, 10], atol=1e-14)
@@ -121,7 +121,7 @@ def test_piecewise_division_errors_name_key_and_line(segments, expected):
 def test_geo_file_is_meshed_with_named_boundaries():
     from skfem_rkpm.meshes import load
 
-    mesh = load(Path(skfem_rkpm.__file__).parent / "scenes" / "upsetting.geo")
+    mesh = load(Path(skfem_rkpm.__file__).parent / "runs" / "scenes" / "upsetting.geo")
     assert type(mesh).__name__ == "MeshQuad1"
     assert sorted(mesh.boundaries) == ["bottom", "left", "right", "top"]
     np.testing.assert_allclose(mesh.p.min(axis=1), [0, 0], atol=1e-12)

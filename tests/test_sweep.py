@@ -7,12 +7,12 @@ import shutil
 import numpy as np
 import pytest
 
-import skfem_rkpm.sweep as sweep
-from skfem_rkpm import runner
-from skfem_rkpm.calibration import (ChartError, friction_from_measurement, ring_curve,
+import skfem_rkpm.runs.sweep as sweep
+from skfem_rkpm.runs import runner
+from skfem_rkpm.runs.calibration import (ChartError, friction_from_measurement, ring_curve,
                                     sweep_curves)
-from skfem_rkpm.cli import main
-from skfem_rkpm.scene import builtin_scenes, load_scene
+from skfem_rkpm.runs.cli import main
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
 RING = builtin_scenes()["ring"]
 # a coarse ring compressed by 10 % in 4 steps: about a second per run

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from skfem_rkpm.calibration import friction_from_measurement, plot_calibration, sweep_curves
+from skfem_rkpm.runs.calibration import friction_from_measurement, plot_calibration, sweep_curves
 
 
 def main(sweep, check=None, reduction=40.0):

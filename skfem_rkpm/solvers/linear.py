@@ -659,7 +659,7 @@ def _register_scene_choices():
     """Let the scene key ``steps.solver`` accept every backend of :data:`BACKENDS`."""
     import dataclasses
 
-    from .. import scene
+    from ..runs import scene
 
     spec = scene.SCHEMA["steps"]["solver"]
     scene.SCHEMA["steps"]["solver"] = dataclasses.replace(spec, choices=("auto", *BACKENDS))

@@ -1,0 +1,154 @@
+"""Command line: ``skfem-rkpm run | compare | sweep | scenes``.
+
+    skfem-rkpm scenes
+    skfem-rkpm run ring [--method rkpm|fem] [--set key=value ...] [--out DIR] [--resume]
+                        [--solver NAME]
+    mpiexec -n 2 skfem-rkpm run ring --solver petsc
+    skfem-rkpm compare ring [--set key=value ...] [--out DIR]
+    skfem-rkpm sweep ring --vary key=v1,v2,... [--vary ...] [--set key=value ...]
+               [--method rkpm|fem] [--scheduler ADDRESS] [--workers N] [--out DIR]
+
+A scene is a built-in name (``skfem-rkpm scenes``) or a path to a TOML file.
+"""
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..solvers.petsc import is_root, world
+from ..solvers.linear import BACKENDS
+from .scene import SceneError, builtin_scenes, load_scene
+
+__all__ = ["main"]
+
+
+def _scene_path(name):
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        return path
+    scenes = builtin_scenes()
+    if name not in scenes:
+        raise SceneError(f"{name!r} is neither a file nor a built-in scene; built-in: "
+                         f"{', '.join(scenes)}")
+    return scenes[name]
+
+
+def _run_one(path, settings, method, out, resume, quiet):
+    from .plot import save_run_figures
+    from .runner import build, run
+
+    scene = load_scene(path, settings)
+    sim = build(scene, method)
+    root = is_root()  # under mpiexec only rank 0 writes and prints
+    ranks = world()[1]
+    if root:
+        out.mkdir(parents=True, exist_ok=True)
+        print(f"{scene['model']['title'] or path.stem}: {sim.method}, {sim.basis.N} dofs, "
+              f"{scene['steps']['count']} steps -> {out}")
+        if ranks > 1 and not scene["steps"]["solver"].startswith("petsc"):
+            print(f"note: {ranks} MPI ranks, but the solver {scene['steps']['solver']!r} is "
+                  f"not distributed: every rank repeats the whole run (use --solver petsc)")
+    result = run(sim, out, progress=root and not quiet, resume=resume)
+    if root and scene["output"]["figures"] and result.history:
+        save_run_figures(sim, result, out)
+    iterations = sum(r.iterations for r in result.history)
+    seconds = sum(r.seconds for r in result.history)
+    if root:
+        print(f"{result.message}: {len(result.history)} steps, {iterations} Newton "
+              f"iterations, {seconds:.1f} s")
+    return sim, result
+
+
+def cmd_scenes(args):
+    for name, path in builtin_scenes().items():
+        title = load_scene(path)["model"]["title"]
+        print(f"{name:12s} {title}  ({path})")
+    return 0
+
+
+def cmd_run(args):
+    path = _scene_path(args.scene)
+    out = Path(args.out or f"results/{path.stem}")
+    settings = args.set + ([f"steps.solver={args.solver}"] if args.solver else [])
+    _, result = _run_one(path, settings, args.method, out, args.resume, args.quiet)
+    return 0 if result.completed else 1
+
+
+def cmd_compare(args):
+    from .report import write_comparison
+
+    path = _scene_path(args.scene)
+    out = Path(args.out or f"results/{path.stem}-compare")
+    runs = {}
+    for method in ("rkpm", "fem"):
+        runs[method] = _run_one(path, args.set, method, out / method, False, args.quiet)
+    report = write_comparison(runs, out)
+    print(f"report: {report}")
+    return 0
+
+
+def cmd_sweep(args):
+    from .sweep import parse_vary, run_sweep
+
+    path = _scene_path(args.scene)
+    vary = dict(parse_vary(option) for option in args.vary)
+    out = Path(args.out or f"results/{path.stem}-sweep")
+    records = run_sweep(path, vary, args.set, args.method, out, args.scheduler,
+                        args.workers, progress=not args.quiet)
+    bad = [r for r in records if r["status"] != "completed"]
+    print(f"{len(records) - len(bad)} of {len(records)} runs completed -> {out / 'sweep.csv'}")
+    return 1 if bad else 0
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="skfem-rkpm", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("scenes", help="list the built-in scenes").set_defaults(func=cmd_scenes)
+    for name, helptext, func in (("run", "run a scene", cmd_run),
+                                 ("compare", "run RKPM and FEM on the same scene",
+                                  cmd_compare)):
+        p = sub.add_parser(name, help=helptext)
+        p.add_argument("scene", help="built-in scene name or TOML file")
+        p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a scene value, e.g. tools.platen.friction=0.3")
+        p.add_argument("--out", help="output folder (default results/SCENE)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        if name == "run":
+            p.add_argument("--method", choices=("rkpm", "fem"))
+            p.add_argument("--resume", action="store_true",
+                           help="continue from the last finished step in --out")
+            p.add_argument("--solver", choices=("auto", *BACKENDS),
+                           help="linear solver (default: the scene's steps.solver, auto); "
+                                "petsc and petsc-gamg distribute the solve over the ranks "
+                                "of `mpiexec -n P skfem-rkpm run ...`")
+        p.set_defaults(func=func)
+    p = sub.add_parser("sweep", help="run every combination of scene values on "
+                                     "dask.distributed (pip install skfem-rkpm[dask])")
+    p.add_argument("scene", help="built-in scene name or TOML file")
+    p.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2,...",
+                   help="values of one key, e.g. tools.platen.friction=0,0.1,stick; "
+                        "several --vary give the Cartesian product")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value in every run")
+    p.add_argument("--method", choices=("rkpm", "fem"))
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="existing dask scheduler, e.g. tcp://host:8786 (default: a "
+                        "local cluster)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: one "
+                                                "per core)")
+    p.add_argument("--out", help="sweep folder (default results/SCENE-sweep)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_sweep)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except ValueError as err:  # SceneError, and the library's checks of the input
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted: finished steps are on disk (use --resume)", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,283 @@
+"""Build a simulation from a scene and run it with results on disk.
+
+:func:`build` maps the validated scene dict one-to-one onto library objects
+(mesh, basis, :class:`~skfem_rkpm.mechanics.problem.SolidProblem`,
+:class:`~skfem_rkpm.solvers.newton.Prescribed` conditions, pressure loads, rigid
+tools); :func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`
+and writes, after every converged step, ``history.csv``, ``fields.xdmf``
+and a checkpoint, so an interrupted run keeps everything it finished and
+``resume=True`` continues from the last step.  Under ``mpiexec`` every rank
+runs the same simulation and only rank 0 writes.
+"""
+
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from skfem import (Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2,
+                   ElementVector, LinearForm, asm)
+from skfem.helpers import dot
+
+from ..approximation.basis import RKBasis
+from ..solvers.petsc import is_root
+from ..elasticity import facet_basis
+from .io import FieldWriter, write_history
+from ..solvers.linear import make_solver
+from ..mechanics.problem import SolidProblem
+from .scene import SceneError, components, material_from, mesh_from, spacing_radius
+from ..solvers.newton import Prescribed, newton_steps
+
+__all__ = ["Simulation", "build", "run"]
+
+#: linear solvers that partition the rows by the dof locations
+DISTRIBUTED = ("petsc", "petsc-gamg")
+
+ELEMENTS = {"quad1": ElementQuad1, "quad2": ElementQuad2, "tri1": ElementTriP1,
+            "tri2": ElementTriP2}
+
+
+@dataclass
+class Simulation:
+    """Everything a run needs; each field is a plain library object."""
+
+    scene: dict
+    mesh: object
+    basis: object
+    problem: SolidProblem
+    prescribed: list
+    load: object = None
+    tools: list = field(default_factory=list)
+    points: dict = field(default_factory=dict)
+
+    @property
+    def method(self):
+        return "rkpm" if isinstance(self.basis, RKBasis) else "fem"
+
+
+def build(scene, method=None):
+    """Turn a validated scene (see :func:`skfem_rkpm.runs.scene.load_scene`) into a
+    :class:`Simulation`; ``method`` overrides ``model.method``."""
+    model = scene["model"]["type"]
+    method = method or scene["model"]["method"]
+    mesh = mesh_from(scene["geometry"], scene.get("_base"))
+    boundaries = set((mesh.boundaries or {}).keys())
+    disc = scene["discretization"]
+    if method == "rkpm":
+        basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
+                        support_shape=disc["support_shape"], intorder=disc["quadrature"],
+                        integration=disc["integration"], axisymmetric=model == "axisymmetric",
+                        radius=(spacing_radius(mesh, disc)
+                                if disc["support"] is not None else None),
+                        support=disc["dilation"])
+    else:
+        element = ELEMENTS[disc["element"]]()
+        if element.refdom != mesh.refdom:
+            raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
+                             f"the {type(mesh).__name__} cells")
+        basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
+    locking = disc["locking"]
+    if locking == "auto":
+        sticks = any(section.get("friction") == "stick"
+                     for name, section in scene.items() if name.startswith("tools."))
+        locking = "fbar" if method == "fem" or sticks else "none"
+    locking = None if locking == "none" else locking
+    problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
+
+    prescribed, pressures = [], []
+    for name, section in scene.items():
+        if not name.startswith("boundary."):
+            continue
+        boundary = name.split(".", 1)[1]
+        if boundary not in boundaries:
+            raise SceneError(f"[{name}]: the mesh has no boundary {boundary!r}; it has "
+                             f"{sorted(boundaries)}")
+        for comp in components(section["fix"] or []):
+            prescribed.append(Prescribed(boundary, comp, 0.0, section["method"]))
+        if section["pressure"] is not None:
+            pressures.append((boundary, section["pressure"]))
+    load = _pressure_load(basis, pressures, model) if pressures else None
+    tool_sections = {name: section for name, section in scene.items()
+                     if name.startswith("tools.")}
+    for name, section in tool_sections.items():
+        for slave in section.get("slaves") or []:
+            if slave not in boundaries:
+                raise SceneError(f"[{name}] slaves: the mesh has no boundary {slave!r}; "
+                                 f"it has {sorted(boundaries)}")
+    tools = [_tool(name.split(".", 1)[1], section, basis, problem, scene)
+             for name, section in tool_sections.items()]
+    points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
+    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points)
+
+
+def _pressure_load(basis, pressures, model):
+    """``t -> f_ext`` of dead normal pressures on the reference boundary."""
+    f = np.zeros(basis.N)
+    for boundary, p in pressures:
+        fb = facet_basis(basis, boundary)
+
+        @LinearForm
+        def pressure(v, w, p=p):
+            weight = 2 * np.pi * w.x[0] if model == "axisymmetric" else 1.0
+            return -p * dot(w.n, v) * weight
+
+        f += asm(pressure, fb)
+    return lambda t: t * f
+
+
+def _tool(name, section, basis, problem, scene):
+    """A rigid tool of the scene as a contact contribution."""
+    from ..mechanics import contact
+
+    return contact.from_scene(name, section, basis, problem, scene)
+
+
+def _point_probes(basis, points):
+    if not points:
+        return None
+    X = np.array(list(points.values())).T
+    return basis.probes(X)
+
+
+def _gauges(sim, probes, d):
+    """Current positions of the followed material points."""
+    if probes is None:
+        return {}
+    X = np.array(list(sim.points.values())).T
+    u = (probes @ d).reshape(X.shape[0], -1)
+    out = {}
+    for k, name in enumerate(sim.points):
+        for c in range(X.shape[0]):
+            out[f"{name} {'xyz'[c]}"] = float(X[c, k] + u[c, k])
+    return out
+
+
+class Progress:
+    """Step, load factor, Newton iterations, elapsed time and ETA: one
+    updating line on a terminal, a new line every 10 % of the load otherwise
+    (log files, pipes)."""
+
+    def __init__(self, stream=sys.stderr, enabled=True):
+        self.stream, self.enabled = stream, enabled
+        self.start = time.perf_counter()
+        self.live = bool(getattr(stream, "isatty", lambda: False)())
+        self.next_line = 0.1
+
+    def __call__(self, record):
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.start
+        eta = elapsed * (1 - record.t) / max(record.t, 1e-12)
+        width = 30
+        done = int(round(width * record.t))
+        text = (f"[{'#' * done}{'.' * (width - done)}] step {record.step} "
+                f"t={record.t:.3f} newton={record.iterations} "
+                f"elapsed {elapsed:.1f}s eta {eta:.1f}s")
+        if self.live:
+            self.stream.write(f"\r{text} ")
+        elif record.t >= self.next_line - 1e-12:
+            self.stream.write(text + "\n")
+            self.next_line = np.floor(record.t * 10 + 1e-9) / 10 + 0.1
+        self.stream.flush()
+
+    def close(self):
+        if self.enabled and self.live:
+            self.stream.write("\n")
+
+
+def run(sim, out=None, progress=True, resume=False, log=None):
+    """Run a simulation; with ``out`` write results there step by step.
+
+    Returns the :class:`~skfem_rkpm.solvers.newton.Result` (history, solutions,
+    completed flag and message).
+    """
+    steps = sim.scene["steps"]
+    output = sim.scene["output"]
+    out = Path(out) if out is not None else None
+    probes = _point_probes(sim.basis, sim.points)
+    d0, start, history_rows, past = None, 0.0, [], []
+    if out is not None:
+        checkpoint = out / "checkpoint.pkl"
+        if resume:  # every MPI rank reads the checkpoint
+            if not checkpoint.exists():
+                raise FileNotFoundError(f"{checkpoint}: nothing to resume")
+            d0, start, past, history_rows = _load_checkpoint(sim, checkpoint)
+    if not is_root():  # under mpiexec only rank 0 writes
+        out = None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    fields = None
+    if out is not None and output["fields"]:
+        name = "fields.xdmf" if start == 0 else f"fields-from-t{start:.4f}.xdmf"
+        fields = FieldWriter(out / name, sim.problem).__enter__()
+    bar = Progress(enabled=progress)
+    history = list(past)
+
+    def on_step(record, d, evaluation):
+        history.append(record)
+        gauges = _gauges(sim, probes, d)
+        for tool in sim.tools:
+            gauges.update(tool.gauges(record.t))
+        history_rows.append(gauges)
+        if out is not None:
+            write_history(out / "history.csv", history, history_rows)
+            if fields is not None and record.step % output["every"] == 0:
+                fields.write(record.t, d, evaluation)
+            _save_checkpoint(sim, out / "checkpoint.pkl", d, record.t, history,
+                             history_rows)
+        bar(record)
+
+    try:
+        result = newton_steps(sim.problem, sim.prescribed, load=sim.load,
+                              steps=steps["count"], tol=steps["tolerance"],
+                              max_iterations=steps["max_iterations"],
+                              max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
+                              contributions=sim.tools, start=start, on_step=on_step,
+                              linear_solver=_linear_solver(sim))
+    finally:
+        bar.close()
+        if fields is not None:
+            fields.__exit__(None, None, None)
+    result.history = history
+    result.gauges = history_rows
+    if out is not None:
+        (out / "status.txt").write_text(result.message + "\n")
+    return result
+
+
+def _linear_solver(sim):
+    """The scene's solver; the distributed ones get the dof locations to
+    partition the particles among the MPI ranks."""
+    name = sim.scene["steps"]["solver"]
+    if name in DISTRIBUTED:
+        return make_solver(name, points=sim.basis.doflocs)
+    return name
+
+
+def _save_checkpoint(sim, path, d, t, history, rows):
+    import pickle
+
+    state = sim.problem.state
+    tools = [tool.get_state() for tool in sim.tools]
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "wb") as handle:
+        pickle.dump(dict(d=d, t=t, Cp_inv=state.Cp_inv, alpha=state.alpha, tools=tools,
+                         history=history, rows=rows), handle)
+    tmp.replace(path)
+
+
+def _load_checkpoint(sim, path):
+    import pickle
+
+    from ..mechanics.materials import MaterialState
+
+    with open(path, "rb") as handle:
+        data = pickle.load(handle)
+    if data["d"].shape != (sim.problem.N,):
+        raise ValueError(f"{path} belongs to a different discretization "
+                         f"({data['d'].shape[0]} dofs, this run has {sim.problem.N})")
+    sim.problem.state = MaterialState(data["Cp_inv"], data["alpha"])
+    for tool, state in zip(sim.tools, data["tools"]):
+        tool.set_state(state)
+    return data["d"], data["t"], data["history"], data["rows"]

@@ -1,0 +1,567 @@
+"""Scene files: a forming simulation described in TOML, mapped one-to-one
+onto the library's Python objects.
+
+A scene has the sections ``model``, ``geometry``, ``discretization``,
+``material``, ``tools``, ``boundary``, ``steps`` and ``output`` (see
+``docs/scenes.md``, generated from :data:`SCHEMA`).  :func:`load_scene`
+reads and validates a file; every error names the offending key and its
+line in the file.  :func:`build` turns a validated scene into the mesh,
+basis, problem, conditions and tools that :func:`skfem_rkpm.runs.runner.run`
+drives, exactly as a script would.
+"""
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["SceneError", "SCHEMA", "load_scene", "parse_scene", "apply_setting",
+           "schema_markdown"]
+
+
+class SceneError(ValueError):
+    """A scene file is wrong; the message names the key and the line."""
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the schema: its type, default and meaning."""
+
+    kind: str  # "str", "float", "int", "bool", "list[float]", "list[int]", "list[str]", "any"
+    default: object = None
+    required: bool = False
+    choices: tuple = ()
+    doc: str = ""
+    check: object = None  # callable value -> error text or None
+
+
+def _positive(v):
+    return None if v > 0 else "must be positive"
+
+
+def _quadrature(v):
+    if v < 1:
+        return "must be positive"
+    return None if v <= MAX_QUADRATURE else (
+        f"must be at most {MAX_QUADRATURE} (the highest Gauss rule for triangles)")
+
+
+def _non_negative(v):
+    return None if v >= 0 else "must not be negative"
+
+
+def _poisson(v):
+    return None if -1.0 < v < 0.5 else "must lie in (-1, 0.5)"
+
+
+def _pair(v):
+    return None if len(v) == 2 else "needs two values"
+
+
+def _not_empty(v):
+    return None if v else "must name at least one boundary (omit the key for all of them)"
+
+
+def _cell_counts(v):
+    if len(v) != 2:
+        return "needs two values [nx, ny]"
+    return None if min(v) >= 1 else "needs at least one cell in each direction"
+
+
+def _grading(v):
+    if len(v) != 2:
+        return "needs two values"
+    return None if min(v) >= 1 else "ratios must be >= 1 (largest / smallest cell)"
+
+
+def _is_number(x):
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _xy(v):
+    """True if ``v`` is a point [x, y] of two finite numbers."""
+    return (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)
+            and all(math.isfinite(x) for x in v))
+
+
+def _polyline_points(v):
+    if isinstance(v, list) and len(v) >= 2 and all(_xy(p) for p in v):
+        return None
+    return "must be a list of at least two [x, y] points of finite numbers"
+
+
+def _named_points(v):
+    if isinstance(v, dict) and all(_xy(p) for p in v.values()):
+        return None
+    return "must be a table of points, {name = [X, Y], ...}, of finite numbers"
+
+
+def _increasing_pair(v):
+    if len(v) != 2:
+        return "needs two values [min, max]"
+    return None if v[1] > v[0] else "needs min < max"
+
+
+def _friction(v):
+    if isinstance(v, str):
+        return None if v == "stick" else 'must be a number >= 0 or "stick"'
+    if _is_number(v) and math.isinf(v) and v > 0:
+        return 'must be finite; use "stick" for no sliding'
+    return None if _is_number(v) and v >= 0 else 'must be a number >= 0 or "stick"'
+
+
+def _segments(v):
+    message = "must be a list of [end, cells] pairs with increasing ends and cells >= 1"
+    if not isinstance(v, list) or not v:
+        return message
+    ends = []
+    for item in v:
+        if not (isinstance(item, list) and len(item) == 2
+                and all(_is_number(x) for x in item) and math.isfinite(item[0])
+                and isinstance(item[1], int) and item[1] >= 1):
+            return message
+        ends.append(float(item[0]))
+    return None if all(b > a for a, b in zip(ends, ends[1:])) else message
+
+
+COMPONENTS = {"x": 0, "y": 1, "z": 2, "r": 0}
+
+#: highest Gauss rule degree scikit-fem has for triangles
+MAX_QUADRATURE = 19
+
+SCHEMA = {
+    "model": {
+        "type": Key("str", "plane_strain", choices=("plane_strain", "axisymmetric", "3d"),
+                    doc="kinematic model; axisymmetric: x is the radius, forces for the full ring"),
+        "method": Key("str", "rkpm", choices=("rkpm", "fem"), doc="discretization method"),
+        "title": Key("str", "", doc="a name for reports"),
+    },
+    "geometry": {
+        "kind": Key("str", "rectangle", choices=("rectangle", "gmsh"),
+                    doc="rectangle section with divisions, or a gmsh .geo/.msh file"),
+        "x": Key("list[float]", check=_increasing_pair, doc="rectangle: [xmin, xmax]"),
+        "y": Key("list[float]", check=_increasing_pair, doc="rectangle: [ymin, ymax]"),
+        "divisions": Key("list[int]", check=_cell_counts,
+                         doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) vertices"),
+        "cells": Key("str", "quad", choices=("quad", "tri"), doc="rectangle: cell type"),
+        "grading": Key("list[float]", check=_grading,
+                       doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform)"),
+        "file": Key("str", doc="gmsh: path of a .msh or .geo file (relative to the scene file) "
+                               "with named physical boundaries"),
+        "x_segments": Key("any", check=_segments,
+                          doc="rectangle: piecewise uniform cells in x, [[x_end, cells], ...] "
+                              "from x[0] to x[1] (replaces divisions[0] and grading)"),
+        "y_segments": Key("any", check=_segments,
+                          doc="rectangle: piecewise uniform cells in y, as x_segments"),
+    },
+    "discretization": {
+        "support": Key("float", check=_positive,
+                       doc="rkpm: support radius a of every particle (length unit); "
+                           "overrides dilation"),
+        "dilation": Key("float", 2.0, check=_positive,
+                        doc="rkpm: normalized support c, a_I = c h_I"),
+        "order": Key("int", 1, choices=(0, 1, 2), doc="rkpm: basis order"),
+        "kernel": Key("str", "cubic", choices=("cubic", "quartic"), doc="rkpm: window"),
+        "support_shape": Key("str", "radial", choices=("radial", "box"), doc="rkpm: support"),
+        "integration": Key("str", "vci", choices=("vci", "gauss"), doc="rkpm: integration"),
+        "quadrature": Key("int", 4, check=_quadrature,
+                          doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
+        "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),
+                       doc="fem: element"),
+        "locking": Key("str", "none", choices=("none", "fbar", "auto"),
+                       doc="volumetric locking control; auto: F-bar for FEM, and for "
+                           "RKPM only when a tool sticks (sliding, RKPM runs better "
+                           "without; see docs/ring.md)"),
+    },
+    "material": {
+        "E": Key("float", required=True, check=_positive, doc="Young's modulus"),
+        "nu": Key("float", required=True, check=_poisson, doc="Poisson's ratio"),
+        "yield": Key("float", check=_positive, doc="initial yield stress; omit for elastic"),
+        "hardening": Key("str", "perfect", choices=("perfect", "linear", "swift"),
+                         doc="perfect, linear (yield + H ε̄ᵖ) or swift (K (eps0 + ε̄ᵖ)^n)"),
+        "H": Key("float", 0.0, check=_non_negative, doc="linear: hardening modulus"),
+        "K": Key("float", check=_positive, doc="swift: strength coefficient"),
+        "eps0": Key("float", 1e-4, check=_positive, doc="swift: prestrain"),
+        "n": Key("float", check=_positive, doc="swift: exponent"),
+    },
+    "tools.*": {
+        "kind": Key("str", "platen", choices=("platen", "polyline", "arc"),
+                    doc="flat platen (infinite line), polyline of segments, circular arc"),
+        "point": Key("list[float]", check=_pair, doc="platen: a point of the surface"),
+        "normal": Key("list[float]", check=_pair, doc="platen: normal pointing to the body"),
+        "points": Key("any", check=_polyline_points,
+                      doc="polyline: [[x, y], ...], body on the left"),
+        "fillet": Key("float", 0.0, check=_non_negative, doc="polyline: corner radius"),
+        "center": Key("list[float]", check=_pair, doc="arc: center"),
+        "radius": Key("float", check=_positive, doc="arc: radius"),
+        "angles": Key("list[float]", check=_pair, doc="arc: [start, end] in degrees"),
+        "motion": Key("list[float]", [0.0, 0.0], check=_pair,
+                      doc="displacement of the tool at the end of the run"),
+        "friction": Key("any", 0.0, check=_friction, doc='Coulomb μ, or "stick"'),
+        "slaves": Key("list[str]", check=_not_empty,
+                      doc="boundaries whose particles may touch the tool "
+                          "(default: the whole boundary)"),
+        "penalty": Key("float", check=_positive,
+                       doc="normal penalty per unit area (default from E and the spacing)"),
+        "collocation": Key("str", "nodal", choices=("nodal", "quadrature"),
+                           doc="contact at the boundary particles (paper) or at boundary "
+                               "quadrature points"),
+    },
+    "boundary.*": {
+        "fix": Key("list[str]", doc='components held at 0 on this boundary, e.g. ["y"] for '
+                                    'a symmetry plane, ["x", "y"] to clamp'),
+        "method": Key("str", "nodal", choices=("nodal", "weak"),
+                      doc="prescribe nodal values (transformation method) or weakly"),
+        "pressure": Key("float", doc="normal pressure reached at the end (ramped linearly)"),
+    },
+    "steps": {
+        "count": Key("int", 20, check=_positive, doc="load steps"),
+        "tolerance": Key("float", 1e-6, check=_positive, doc="relative residual tolerance"),
+        "max_iterations": Key("int", 20, check=_positive, doc="Newton iterations per step"),
+        "max_cutbacks": Key("int", 8, check=_non_negative, doc="step halvings allowed"),
+        "solver": Key("str", "auto",
+                      choices=("auto", "dense", "superlu", "pardiso", "cholmod", "amg"),
+                      doc="linear solver of the Newton iterations (skfem_rkpm.solvers.linear)"),
+    },
+    "output": {
+        "fields": Key("bool", True, doc="write fields.xdmf (+ .h5) for ParaView"),
+        "every": Key("int", 1, check=_positive, doc="write fields every n-th step"),
+        "figures": Key("bool", True, doc="write PNG figures"),
+        "points": Key("any", {}, check=_named_points,
+                      doc="material points to follow, {name = [X, Y]}; their "
+                          "current positions go into history.csv"),
+    },
+}
+
+REQUIRED_SECTIONS = ("material",)
+
+
+# -- reading ---------------------------------------------------------------------
+
+
+def _key_lines(text):
+    """Line of every ``key`` as a dotted path, from the TOML source text."""
+    lines, table = {}, ""
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        header = re.match(r"^\[\s*([^\]]+?)\s*\]$", line)
+        if header:
+            table = header.group(1).replace('"', "").replace(" ", "")
+            lines.setdefault(table, number)
+            continue
+        assign = re.match(r"^([A-Za-z0-9_.\-\"]+)\s*=", line)
+        if assign:
+            key = assign.group(1).replace('"', "")
+            lines.setdefault(f"{table}.{key}" if table else key, number)
+    return lines
+
+
+def _schema_for(section):
+    if section in SCHEMA:
+        return SCHEMA[section]
+    head = section.split(".")[0]
+    if f"{head}.*" in SCHEMA and section.count(".") == 1:
+        return SCHEMA[f"{head}.*"]
+    return None
+
+
+def _check_type(kind, value):
+    number = (int, float)
+    if kind == "any":
+        return True
+    if kind == "str":
+        return isinstance(value, str)
+    if kind == "float":
+        return isinstance(value, number) and not isinstance(value, bool)
+    if kind == "int":
+        return isinstance(value, int) and not isinstance(value, bool)
+    if kind == "bool":
+        return isinstance(value, bool)
+    if kind.startswith("list["):
+        item = kind[5:-1]
+        return isinstance(value, list) and all(_check_type(item, v) for v in value)
+    raise AssertionError(kind)
+
+
+def parse_scene(text, source="<scene>", base=None):
+    """Validate the TOML ``text`` of a scene; return the filled-in dict.
+
+    Raises
+    ------
+    SceneError
+        Naming the key, the problem and the line of ``source``.
+    """
+    lines = _key_lines(text)
+
+    def fail(path, message):
+        where = f"{source}, line {lines[path]}" if path in lines else source
+        raise SceneError(f"{where}: {path}: {message}")
+
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"{source}: not valid TOML: {err}") from None
+    scene = {}
+    for name, content in data.items():
+        if name in ("tools", "boundary"):
+            if not isinstance(content, dict):
+                fail(name, "must be a table of named entries")
+            for entry, values in content.items():
+                scene[f"{name}.{entry}"] = _section(f"{name}.{entry}", values, fail)
+        elif name in SCHEMA:
+            scene[name] = _section(name, content, fail)
+        else:
+            known = sorted(s.replace(".*", "") for s in SCHEMA)
+            fail(name, f"unknown section; known sections: {', '.join(known)}")
+    for name in SCHEMA:
+        if "*" not in name and name not in scene:
+            if name in REQUIRED_SECTIONS:
+                raise SceneError(f"{source}: missing required section [{name}]")
+            scene[name] = _section(name, {}, fail)
+    _check_combinations(scene, fail)
+    scene["_source"] = source
+    scene["_base"] = str(base) if base is not None else None
+    return scene
+
+
+def _section(path, values, fail):
+    schema = _schema_for(path)
+    if not isinstance(values, dict):
+        fail(path, "must be a table")
+    out = {}
+    for key, value in values.items():
+        if key not in schema:
+            fail(f"{path}.{key}", f"unknown key; known keys: {', '.join(sorted(schema))}")
+        spec = schema[key]
+        if spec.kind == "float" and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if spec.kind == "list[float]" and isinstance(value, list):
+            value = [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                     for v in value]
+        if not _check_type(spec.kind, value):
+            fail(f"{path}.{key}", f"must be of type {spec.kind}, not {value!r}")
+        if spec.kind in ("float", "list[float]") and not all(
+                math.isfinite(v) for v in (value if isinstance(value, list) else [value])):
+            fail(f"{path}.{key}", f"must be finite, not {value!r}")
+        if spec.choices and value not in spec.choices:
+            fail(f"{path}.{key}", f"must be one of {list(spec.choices)}, not {value!r}")
+        if spec.check is not None:
+            problem = spec.check(value)
+            if problem:
+                fail(f"{path}.{key}", f"{problem} (got {value!r})")
+        out[key] = value
+    for key, spec in schema.items():
+        if key not in out:
+            if spec.required:
+                fail(path, f"missing required key {key!r}")
+            out[key] = spec.default
+    return out
+
+
+def _check_combinations(scene, fail):
+    geometry = scene["geometry"]
+    if scene["model"]["type"] == "3d":
+        fail("model.type", '"3d" needs a 3D mesh, but scene geometries (rectangle, gmsh) '
+                           'are 2D sections; use "plane_strain" or "axisymmetric"')
+    if geometry["kind"] == "rectangle":
+        for key in ("x", "y", "divisions"):
+            if geometry[key] is None:
+                fail("geometry", f"a rectangle needs {key!r}")
+        for axis, key in enumerate(("x_segments", "y_segments")):
+            span = geometry["xy"[axis]]
+            if geometry[key] is not None:
+                first, last = geometry[key][0][0], geometry[key][-1][0]
+                if not (first > span[0] and abs(last - span[1]) <= 1e-9 * max(abs(span[1]), 1)):
+                    fail(f"geometry.{key}", f"segment ends must lie in ({span[0]:g}, "
+                                            f"{span[1]:g}] and the last must be {span[1]:g}")
+    elif geometry["file"] is None:
+        fail("geometry", "kind = \"gmsh\" needs 'file'")
+    material = scene["material"]
+    if material["hardening"] == "swift" and (material["K"] is None or material["n"] is None):
+        fail("material.hardening", "swift needs K and n")
+    if material["hardening"] != "perfect" and material["yield"] is None \
+            and material["hardening"] != "swift":
+        fail("material.hardening", "needs 'yield'")
+    for name, section in scene.items():
+        if name.startswith("boundary.") and section["fix"]:
+            for comp in section["fix"]:
+                if comp not in COMPONENTS:
+                    fail(f"{name}.fix", f"unknown component {comp!r}; use x, y, z or r")
+        if name.startswith("tools."):
+            needs = {"platen": ("point", "normal"), "polyline": ("points",),
+                     "arc": ("center", "radius", "angles")}[section["kind"]]
+            for key in needs:
+                if section[key] is None:
+                    fail(name, f"a {section['kind']} needs {key!r}")
+            try:
+                tool_from(name.split(".", 1)[1], section)
+            except ValueError as err:
+                fail(name, str(err))
+    try:
+        material_from(material)
+    except ValueError as err:
+        fail("material", str(err))
+
+
+def load_scene(path, settings=()):
+    """Read, override (``settings``: ``"key.path=value"`` strings) and validate."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: no such scene file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as err:
+        raise SceneError(f"{path}: not a TOML scene file (not UTF-8 text: byte "
+                         f"{err.start} is {err.object[err.start:err.start + 1]!r})") from None
+    for setting in settings:
+        text = apply_setting(text, setting)
+    return parse_scene(text, str(path), base=path.parent)
+
+
+def apply_setting(text, setting):
+    """Override one value in a scene's TOML text: ``"tools.platen.friction=0.3"``.
+
+    The value is read as TOML (numbers, booleans, arrays, quoted strings);
+    anything else is taken as a string.  Missing tables and keys are added.
+    """
+    if "=" not in setting:
+        raise SceneError(f"--set {setting!r}: expected key=value")
+    path, value = (s.strip() for s in setting.split("=", 1))
+    try:
+        tomllib.loads(f"v = {value}")
+    except tomllib.TOMLDecodeError:
+        value = '"' + value.replace('"', '\\"') + '"'
+    *tables, key = path.split(".")
+    table = ".".join(tables)
+    out, current, done = [], "", False
+    for line in text.splitlines():
+        header = re.match(r"^\s*\[\s*([^\]]+?)\s*\]\s*(#.*)?$", line)
+        if header:
+            current = header.group(1).replace(" ", "")
+        elif current == table and re.match(rf"^\s*{re.escape(key)}\s*=", line):
+            line, done = f"{key} = {value}", True
+        out.append(line)
+    if not done:
+        # insert after the table header, or append a new table
+        for i, line in enumerate(out):
+            header = re.match(r"^\s*\[\s*([^\]]+?)\s*\]", line)
+            if header and header.group(1).replace(" ", "") == table:
+                out.insert(i + 1, f"{key} = {value}")
+                done = True
+                break
+        if not done:
+            out += ["", f"[{table}]", f"{key} = {value}"] if table else [f"{key} = {value}"]
+    return "\n".join(out) + "\n"
+
+
+def schema_markdown():
+    """The reference tables of ``docs/scenes.md``, generated from :data:`SCHEMA`."""
+    parts = []
+    for section, keys in SCHEMA.items():
+        title = section.replace(".*", ".NAME")
+        parts.append(f"### `[{title}]`\n")
+        parts.append("| key | type | default | meaning |")
+        parts.append("|---|---|---|---|")
+        for key, spec in keys.items():
+            default = "required" if spec.required else (
+                "—" if spec.default is None else f"`{spec.default!r}`")
+            doc = spec.doc + (f" ({', '.join(map(str, spec.choices))})" if spec.choices else "")
+            parts.append(f"| `{key}` | {spec.kind} | {default} | {doc} |")
+        parts.append("")
+    return "\n".join(parts)
+
+
+def builtin_scenes():
+    """Names and paths of the scenes shipped with the library."""
+    folder = Path(__file__).parent / "scenes"
+    return {p.stem: p for p in sorted(folder.glob("*.toml"))}
+
+
+def components(names):
+    """Component indices of names like ``["x", "y"]``."""
+    return [COMPONENTS[n] for n in names]
+
+
+def material_from(section):
+    """The :class:`~skfem_rkpm.mechanics.materials.J2Material` of a scene."""
+    from ..mechanics.materials import J2Material, linear, perfect, swift
+
+    law = section["hardening"]
+    if law == "swift":
+        hardening = swift(section["K"], section["eps0"], section["n"])
+    elif section["yield"] is None:
+        hardening = None
+    elif law == "linear":
+        hardening = linear(section["yield"], section["H"])
+    else:
+        hardening = perfect(section["yield"])
+    return J2Material(section["E"], section["nu"], hardening)
+
+
+def tool_from(name, section):
+    """The rigid :class:`~skfem_rkpm.mechanics.contact.Tool` of a
+    ``[tools.NAME]`` section (its geometry and motion)."""
+    from ..mechanics.contact import Arc, Platen, Polyline
+
+    kind, motion = section.get("kind", "platen"), section.get("motion") or (0.0, 0.0)
+    if kind == "platen":
+        return Platen(section["point"], section["normal"], motion, name)
+    if kind == "polyline":
+        return Polyline(section["points"], section.get("fillet") or 0.0, motion=motion,
+                        name=name)
+    if kind == "arc":
+        return Arc(section["center"], section["radius"], section["angles"], motion, name)
+    raise SceneError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
+
+
+def mesh_from(section, base=None):
+    """The background mesh of a scene's geometry section."""
+    from ..meshes import graded_rectangle, load, rectangle
+
+    if section["kind"] == "gmsh":
+        path = Path(section["file"])
+        if base is not None and not path.is_absolute():
+            path = Path(base) / path
+        try:
+            return load(path)
+        except ValueError as err:
+            raise SceneError(f"geometry.file: {err}") from err
+    (x0, x1), (y0, y1) = section["x"], section["y"]
+    nx, ny = section["divisions"]
+    if section.get("x_segments") or section.get("y_segments"):
+        from ..meshes import piecewise_rectangle
+
+        return piecewise_rectangle(_breaks(x0, x1, nx, section.get("x_segments")),
+                                   _breaks(y0, y1, ny, section.get("y_segments")),
+                                   kind=section["cells"])
+    grading = section["grading"] or [1.0, 1.0]
+    if grading != [1.0, 1.0]:
+        if grading[0] != grading[1]:
+            raise SceneError("geometry.grading: different ratios per direction are "
+                             "not supported yet; give equal values")
+        mesh = graded_rectangle(x1 - x0, y1 - y0, nx, ny, grading[0], kind=section["cells"])
+        return mesh.translated((x0, y0))
+    return rectangle(x1 - x0, y1 - y0, nx, ny, kind=section["cells"], origin=(x0, y0))
+
+
+def _breaks(start, stop, cells, segments):
+    """Vertex coordinates of piecewise uniform divisions (``[[end, cells], ...]``)."""
+    if not segments:
+        return np.linspace(start, stop, cells + 1)
+    parts, a = [np.array([start])], start
+    for end, n in segments:
+        parts.append(np.linspace(a, end, n + 1)[1:])
+        a = end
+    return np.concatenate(parts)
+
+
+def spacing_radius(mesh, section):
+    """Support radii of a scene's particles, checked for every particle."""
+    from ..meshes import local_spacing
+
+    if section["support"] is not None:
+        return np.full(mesh.nvertices, section["support"])
+    return section["dilation"] * local_spacing(mesh)

@@ -8,7 +8,7 @@ import pytest
 from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad
 
 from skfem_rkpm import RKBasis
-from skfem_rkpm.exact import uniaxial_compression
+from skfem_rkpm.verification.exact import uniaxial_compression
 from skfem_rkpm.mechanics.contact import (Arc, NodeToSegmentContact, Platen, Polyline,
                                           RigidContact, STICK_FRICTION, coulomb, from_scene, polyline,
                                           slave_points)
@@ -286,7 +286,7 @@ def test_contact_tangent_is_the_derivative_of_the_contact_force(tool, friction, 
 
 def uniaxial_exact(delta, law):
     """Axial Cauchy stress, force on a unit-radius cylinder and ε̄ᵖ of the
-    homogeneous compression (:func:`skfem_rkpm.exact.uniaxial_compression`)."""
+    homogeneous compression (:func:`skfem_rkpm.verification.exact.uniaxial_compression`)."""
     state = uniaxial_compression(delta, E, NU, law)
     return state.cauchy, np.pi * state.nominal, state.alpha
 

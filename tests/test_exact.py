@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from skfem_rkpm import exact
+from skfem_rkpm.verification import exact
 
 # cantilever of the usual meshfree benchmark
 L, D, P = 48.0, 12.0, 1000.0

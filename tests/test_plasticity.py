@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 from skfem import Basis, ElementQuad1, ElementVector
 
 from skfem_rkpm import RKBasis
-from skfem_rkpm.exact import uniaxial_compression
+from skfem_rkpm.verification.exact import uniaxial_compression
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.mechanics.materials import J2Material, MaterialState, linear, perfect, swift
 from skfem_rkpm.mechanics.problem import SolidProblem
@@ -103,7 +103,7 @@ def test_simple_shear_perfect_plasticity_stays_on_the_yield_surface():
 
 def uniaxial_exact(delta, law):
     """Axial Cauchy stress, force on a unit-radius cylinder and ε̄ᵖ of the
-    homogeneous compression (:func:`skfem_rkpm.exact.uniaxial_compression`)."""
+    homogeneous compression (:func:`skfem_rkpm.verification.exact.uniaxial_compression`)."""
     state = uniaxial_compression(delta, E, NU, law)
     return state.cauchy, np.pi * state.nominal, state.alpha
 
@@ -235,7 +235,7 @@ def test_newton_converges_quadratically_on_a_plastic_step(kind):
 
 
 def test_small_load_limit_is_linear_elasticity():
-    from skfem_rkpm.elasticity import solve_elasticity
+    from skfem_rkpm.verification.elasticity import solve_elasticity
 
     mesh = rectangle(4.0, 1.0, 8, 2)
     basis = RKBasis(mesh, vector=True, support=2.0)

@@ -9,7 +9,7 @@ radius by 1/sqrt(1 - r) at height reduction r, and the platen force is
 import numpy as np
 import pytest
 
-from skfem_rkpm.exact import uniaxial_compression
+from skfem_rkpm.verification.exact import uniaxial_compression
 from skfem_rkpm.mechanics.materials import perfect
 from skfem_rkpm.runs.runner import build, run
 from skfem_rkpm.runs.scene import builtin_scenes, load_scene

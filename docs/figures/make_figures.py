@@ -30,7 +30,7 @@ from skfem.visuals.matplotlib import draw  # noqa: E402
 from skfem_rkpm import (Assembler, RKBasis, SingularMomentError,  # noqa: E402
                         isotropic_tangent, local_spacing, rk_shape_functions,
                         solve)
-from skfem_rkpm.elasticity import (error_norms, lame, solve_elasticity,  # noqa: E402
+from skfem_rkpm.verification.elasticity import (error_norms, lame, solve_elasticity,  # noqa: E402
                                    stress_from_voigt)
 from skfem_rkpm.approximation.kernels import cubic_spline, quartic_spline  # noqa: E402
 from skfem_rkpm.meshes import gmsh_plate_with_hole, rectangle  # noqa: E402

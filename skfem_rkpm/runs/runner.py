@@ -22,7 +22,7 @@ from skfem.helpers import dot
 
 from ..approximation.basis import RKBasis
 from ..solvers.petsc import is_root
-from ..elasticity import facet_basis
+from ..verification.elasticity import facet_basis
 from .io import FieldWriter, write_history
 from ..solvers.linear import make_solver
 from ..mechanics.problem import SolidProblem

@@ -6,7 +6,7 @@ nodal dofs.  The discrete solution then differs from the exact one only by
 the approximation and integration errors of the method, which is what a
 convergence study should measure.  (Prescribing displacements along a whole
 edge adds the error of the boundary-condition method; see
-:func:`skfem_rkpm.elasticity.solve_elasticity`.)
+:func:`skfem_rkpm.verification.elasticity.solve_elasticity`.)
 """
 
 import time
@@ -17,12 +17,12 @@ import numpy as np
 from skfem import LinearForm, asm
 from skfem.helpers import dot
 
-from .assembly import Assembler, isotropic_tangent
-from .approximation.constraints import solve
+from ..assembly import Assembler, isotropic_tangent
+from ..approximation.constraints import solve
 from .elasticity import error_norms, facet_basis, lame, stress_from_voigt
 from .exact import (kirsch_displacement, kirsch_stress, timoshenko_displacement,
                     timoshenko_stress)
-from .meshes import gmsh_plate_with_hole, rectangle
+from ..meshes import gmsh_plate_with_hole, rectangle
 
 __all__ = ["Problem", "timoshenko_beam", "plate_with_hole", "solve_problem",
            "rigid_motion_dofs", "convergence_study", "rates"]

@@ -200,7 +200,8 @@ def run_solve(matrix_file, backend, repeat, budget, out):
     """Time ``solve_saddle_point`` with a fresh ``backend`` on the stored system."""
     import scipy.sparse as sp
 
-    from skfem_rkpm.solvers.linear import make_solver, solve_saddle_point
+    from skfem_rkpm.solvers.constrained import solve_saddle_point
+    from skfem_rkpm.solvers.linear import make_solver
 
     z = np.load(matrix_file)
     K = sp.csr_matrix((z["data"], z["indices"], z["indptr"]), shape=tuple(z["shape"]))

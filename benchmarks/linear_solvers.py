@@ -5,7 +5,7 @@ Matrices: the small-strain elasticity tangent
 ν = 0.3) on ``rectangle(1, 1, n, n)`` with the left side clamped by the
 augmented Lagrangian term, ``A = K + ρ CᵀC`` with ``C`` the nodal constraints
 of both components on the left side and ``ρ`` as in
-:func:`skfem_rkpm.solvers.linear.solve_saddle_point` (so that every backend,
+:func:`skfem_rkpm.solvers.constrained.solve_saddle_point` (so that every backend,
 including the SPD-only ones, gets the same nonsingular matrix).  Bases:
 
 * ``rk``: ``RKBasis(mesh, vector=True, support=2.0)``, VCI integration
@@ -63,7 +63,7 @@ def build(case, dofs):
 
     from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
     from skfem_rkpm.approximation.constraints import nodal_constraint
-    from skfem_rkpm.solvers.linear import _penalty
+    from skfem_rkpm.solvers.constrained import _penalty
     from skfem_rkpm.meshes import rectangle
 
     n = max(2, int(round(np.sqrt(dofs / 2.0) - 1)))

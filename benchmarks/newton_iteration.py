@@ -102,7 +102,7 @@ def iteration(problem, C, g, d, times):
     Returns the tangent, the new state and the error of the solve (None if
     it succeeded); a failed solve is timed up to the failure.
     """
-    from skfem_rkpm.approximation.constraints import solve_constrained
+    from skfem_rkpm.solvers.constrained import solve_constrained
     from skfem_rkpm.mechanics.kinematics import deformation_gradient, to_assembler
 
     asm = problem.assembler

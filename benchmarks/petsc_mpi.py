@@ -83,7 +83,7 @@ def steps(sim, count, solver):
 
 # -- paper resolution ----------------------------------------------------
 def paper(args):
-    from skfem_rkpm.approximation.constraints import solve_constrained
+    from skfem_rkpm.solvers.constrained import solve_constrained
     from skfem_rkpm.solvers.linear import make_solver
 
     sim = ring()

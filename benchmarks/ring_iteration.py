@@ -102,7 +102,7 @@ def fastest(fn, repeat):
 
 def time_parts(sim, d, t, C, repeat):
     """Milliseconds of each part of one Newton iteration at ``d``."""
-    from skfem_rkpm.approximation.constraints import solve_constrained
+    from skfem_rkpm.solvers.constrained import solve_constrained
     from skfem_rkpm.mechanics.kinematics import deformation_gradient, from_entries
 
     problem, tool = sim.problem, sim.tools[0]

@@ -2,7 +2,8 @@
 
 from .assembly import Assembler, isotropic_tangent, layout
 from .approximation.basis import RKBasis, RKFacetBasis
-from .approximation.constraints import linear_solve, solve, transformation
+from .approximation.constraints import transformation
+from .solvers.constrained import linear_solve, solve
 from .approximation.kernels import cubic_spline, quartic_spline
 from .meshes import local_spacing
 from .approximation.shape import ShapeTable, SingularMomentError, rk_shape_functions

@@ -10,13 +10,17 @@ import importlib
 import warnings
 
 
-def forward(old, new):
-    """``(__getattr__, __all__)`` for the module ``old`` that moved to ``new``."""
-    warnings.warn(f"{old} moved to {new}: import from there ({old} goes in the next "
-                  f"release)", DeprecationWarning, stacklevel=3)
-    module = importlib.import_module(new)
+def forward(old, *new):
+    """``(__getattr__, __all__)`` for the module ``old`` whose names moved to
+    the modules ``new`` (looked up in that order)."""
+    warnings.warn(f"{old} moved to {' and '.join(new)}: import from there ({old} goes "
+                  f"in the next release)", DeprecationWarning, stacklevel=3)
+    modules = [importlib.import_module(name) for name in new]
 
     def __getattr__(name):
-        return getattr(module, name)
+        for module in modules:
+            if hasattr(module, name):
+                return getattr(module, name)
+        raise AttributeError(f"module {old!r} has no attribute {name!r}")
 
-    return __getattr__, list(getattr(module, "__all__", ()))
+    return __getattr__, [n for module in modules for n in getattr(module, "__all__", ())]

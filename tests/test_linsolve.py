@@ -12,11 +12,13 @@ from skfem import Basis, ElementQuad1, ElementVector
 from skfem.models.elasticity import lame_parameters
 
 from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
-from skfem_rkpm.solvers import linear as linsolve
-from skfem_rkpm.approximation.constraints import nodal_constraint, solve_constrained
-from skfem_rkpm.solvers.linear import (BackendUnavailable, NotPositiveDefinite, available,
-                                 is_symmetric, make_solver)
+from skfem_rkpm.approximation.constraints import nodal_constraint
 from skfem_rkpm.meshes import rectangle
+from skfem_rkpm.solvers import backend as backend_registry
+from skfem_rkpm.solvers import linear as linsolve
+from skfem_rkpm.solvers.constrained import _penalty, solve_constrained
+from skfem_rkpm.solvers.linear import (BackendUnavailable, NotPositiveDefinite, available,
+                                       is_symmetric, make_solver)
 
 OPTIONAL = ["pardiso", "cholmod", "amg"]
 ALL = ["dense", "superlu", *OPTIONAL]
@@ -71,7 +73,7 @@ def test_backend_solves_the_augmented_matrix(name, kind):
     """K + ρCᵀC: SPD for FEM and RK-Gauss, non-symmetric for RK with VCI."""
     solver = backend(name)
     K, C, _, f = system(kind)
-    A = (K + linsolve._penalty(K, C) * (C.T @ C)).tocsr()
+    A = (K + _penalty(K, C) * (C.T @ C)).tocsr()
     ref = np.linalg.solve(A.toarray(), f)
     if name == "cholmod" and kind == "rk":
         with pytest.raises(NotPositiveDefinite, match="symmetric"):
@@ -109,7 +111,7 @@ def test_backend_solves_a_non_symmetric_system(name):
     """A friction-like non-symmetric tangent: K plus a skew part of 10 % of |K|."""
     solver = backend(name)
     K, C, _, f = system("fem")
-    A = (K + linsolve._penalty(K, C) * (C.T @ C)).tocsr()
+    A = (K + _penalty(K, C) * (C.T @ C)).tocsr()
     rng = np.random.default_rng(0)
     S = sp.random(A.shape[0], A.shape[0], density=0.01, random_state=rng).tocsr()
     A = (A + 0.1 * abs(K).max() * (S - S.T) / abs(S).max()).tocsr()
@@ -123,7 +125,7 @@ def test_backend_solves_a_non_symmetric_system(name):
 def test_analysis_is_reused_while_the_pattern_stays(name):
     solver = backend(name)
     K, C, _, f = system("fem")
-    A = (K + linsolve._penalty(K, C) * (C.T @ C)).tocsr()
+    A = (K + _penalty(K, C) * (C.T @ C)).tocsr()
     solver.factor(A)
     A2 = (A + sp.diags(0.3 * A.diagonal())).tocsr()  # same pattern, other values
     x = solver.factor(A2).solve(f)
@@ -203,7 +205,7 @@ def test_missing_backend_names_the_extra(name, monkeypatch):
             raise ImportError(f"No module named {mod!r}")
         return real(mod, *args, **kwargs)
 
-    monkeypatch.setattr(linsolve.importlib, "import_module", fake)
+    monkeypatch.setattr(backend_registry.importlib, "import_module", fake)
     with pytest.raises(BackendUnavailable, match=rf"pip install skfem-rkpm\[{name}\]"):
         make_solver(name)
     assert name not in available()

@@ -21,6 +21,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
+from skfem_rkpm.solvers import backend as backend_registry
 from skfem_rkpm.solvers import linear as linsolve
 from skfem_rkpm.solvers.petsc import bisection, row_owners, world
 from skfem_rkpm.solvers.linear import BackendUnavailable, make_solver
@@ -59,7 +60,7 @@ def test_missing_petsc_names_the_extra_and_the_build(name, monkeypatch):
             raise ImportError("No module named 'petsc4py'")
         return real(mod, *args, **kwargs)
 
-    monkeypatch.setattr(linsolve.importlib, "import_module", fake)
+    monkeypatch.setattr(backend_registry.importlib, "import_module", fake)
     with pytest.raises(BackendUnavailable) as err:
         make_solver(name)
     message = str(err.value)
@@ -134,7 +135,7 @@ def test_petsc_solves_sparse_systems(name, symmetric):
 def test_petsc_solves_the_saddle_point_system():
     from test_linsolve import system
 
-    from skfem_rkpm.approximation.constraints import solve_constrained
+    from skfem_rkpm.solvers.constrained import solve_constrained
 
     K, C, g, f = system("rk")
     d_ref, lam_ref = solve_constrained(K, f, C, g, solver="dense")

@@ -1,28 +1,20 @@
-"""Nodal essential conditions by the transformation method, Eq. (3.31)-(3.37).
+"""The transformation Λ of the nodal values (Eq. 3.32-3.34) and the
+constraint rows built from it: nodal values prescribed on a boundary (the
+rows of Eq. 3.37) or weak boundary multipliers.
 
 RK coefficients ``d`` are not nodal values; the nodal values are
-``d̂ = Λᵀ d`` (Eq. 3.32-3.34).  The paper solves ``K̂ d̂ = f̂`` with
-``K̂ = Λ⁻¹ K Λ⁻ᵀ`` and ``f̂ = Λ⁻¹ f`` and prescribes entries of ``d̂``
-(Eq. 3.37).  That is the minimum of ``½ dᵀ K d - fᵀ d`` over ``d`` subject to
-the sparse linear constraints ``(Λᵀ d)_D = g``, so we solve the equivalent
-saddle-point system
-
-    [ K   Cᵀ ] [ d ]   [ f ]
-    [ C   0  ] [ -λ] = [ g ],     C = rows D of Λᵀ,
-
-which never forms ``Λ⁻¹``.  ``λ`` are the nodal reaction forces.  For a
-scikit-fem (FEM) basis ``Λ`` is the identity and the same call prescribes
-nodal values directly.
+``d̂ = Λᵀ d``.  This module builds rows ``C`` of ``Λᵀ`` (or of a boundary
+integral against ``Λ``) and solves nothing: the constrained solves are in
+:mod:`skfem_rkpm.solvers.constrained`.  For a scikit-fem (FEM) basis ``Λ``
+is the identity.
 """
 
 import numpy as np
 import scipy.sparse as sp
 from skfem.element import ElementVector
 
-from ..solvers.linear import make_solver, solve_saddle_point
+__all__ = ["transformation", "Constraint", "nodal_constraint", "weak_constraint"]
 
-__all__ = ["transformation", "solve", "solve_constrained", "linear_solve",
-           "Constraint", "nodal_constraint", "weak_constraint"]
 
 def transformation(basis):
     """Λᵀ of a basis: its ``nodal_matrix`` or, for FEM bases, the identity."""
@@ -30,70 +22,6 @@ def transformation(basis):
     if nodal is None:
         return sp.identity(basis.N, format="csr")
     return nodal
-
-
-def linear_solve(A, b, solver="auto"):
-    """Solve ``A x = b``; ``solver`` is a name or a :class:`~skfem_rkpm.solvers.linear.Solver`.
-
-    The default picks dense LU when small and sparse LU (SuperLU, minimum
-    degree ordering of ``Aᵀ + A``, symmetric mode, COLAMD fallback) or an
-    installed faster backend otherwise; see :mod:`skfem_rkpm.solvers.linear`.
-    """
-    return make_solver(solver).factor(A).solve(b)
-
-
-def _prescribed_values(D, x, N):
-    if x is None:
-        return np.zeros(len(D))
-    x = np.asarray(x, dtype=float)
-    if x.shape == (N,):
-        return x[D]
-    if x.shape == (len(D),) or x.ndim == 0:
-        return np.broadcast_to(x, (len(D),)).astype(float)
-    raise ValueError(f"prescribed values have shape {x.shape}; give one value per "
-                     f"constrained dof ({len(D)}) or a full vector ({N})")
-
-
-def solve(K, f, basis, D=None, x=None, return_reactions=False):
-    """Solve ``K d = f`` with prescribed *nodal values* on dofs ``D``.
-
-    Parameters
-    ----------
-    K : sparse matrix, shape (N, N)
-        Stiffness in generalized coordinates (as assembled on the basis).
-    f : ndarray, shape (N,)
-        Load vector in generalized coordinates.
-    basis : RKBasis or skfem basis
-        Supplies the transformation Λᵀ.
-    D : array of int, optional
-        Dofs whose nodal values are prescribed (``basis.get_dofs(...)``).
-    x : ndarray, optional
-        The prescribed nodal values: a full vector (N,) read at ``D``, one
-        value per entry of ``D``, or a scalar.  Default zero.
-    return_reactions : bool
-        Also return the nodal reactions ``λ`` on ``D``.
-
-    Returns
-    -------
-    d : ndarray, shape (N,)
-        Generalized coefficients; ``basis.nodal_values(d)[D]`` equals ``x``.
-    """
-    N = K.shape[0]
-    D = np.zeros(0, dtype=np.int64) if D is None else np.asarray(D, dtype=np.int64)
-    g = _prescribed_values(D, x, N)
-    d, reactions = solve_constrained(K, f, transformation(basis)[D], g)
-    return (d, reactions) if return_reactions else d
-
-
-def solve_constrained(K, f, C, g, solver="auto"):
-    """Solve ``K d = f + Cᵀ λ`` subject to ``C d = g``; return ``d`` and ``λ``.
-
-    ``λ`` are the reactions: the forces the constraints exert, conjugate to
-    the constrained nodal values.  ``solver`` is a backend name or a
-    :class:`~skfem_rkpm.solvers.linear.Solver` kept across calls (to reuse its
-    analysis); see :func:`~skfem_rkpm.solvers.linear.solve_saddle_point`.
-    """
-    return solve_saddle_point(make_solver(solver), K, f, C, g)
 
 
 class Constraint:

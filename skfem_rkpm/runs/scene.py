@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..solvers.backend import BACKENDS
+
 __all__ = ["SceneError", "SCHEMA", "load_scene", "parse_scene", "apply_setting",
            "schema_markdown"]
 
@@ -223,7 +225,7 @@ SCHEMA = {
         "max_iterations": Key("int", 20, check=_positive, doc="Newton iterations per step"),
         "max_cutbacks": Key("int", 8, check=_non_negative, doc="step halvings allowed"),
         "solver": Key("str", "auto",
-                      choices=("auto", "dense", "superlu", "pardiso", "cholmod", "amg"),
+                      choices=("auto", *BACKENDS),
                       doc="linear solver of the Newton iterations (skfem_rkpm.solvers.linear)"),
     },
     "output": {

@@ -51,16 +51,17 @@ constraints are handled by an augmented Lagrangian instead (see that
 function).
 """
 
-import importlib
-import time
-
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_backend,
+                      _refine, available, is_symmetric)
+from .petsc import PETScGAMG, PETScLU
+
 __all__ = ["make_solver", "available", "Solver", "BackendUnavailable",
-           "solve_saddle_point", "is_symmetric", "DENSE_LIMIT", "BACKENDS"]
+           "is_symmetric", "DENSE_LIMIT", "BACKENDS"]
 
 #: systems up to this size are solved with dense LU by ``"auto"`` (measured:
 #: SuperLU wins from about 600 unknowns on, even for RK tangents with 200
@@ -71,172 +72,6 @@ DENSE_LIMIT = 500
 #: core, SuperLU is faster up to about 1e4 unknowns, and PARDISO with several
 #: threads is not bitwise reproducible from run to run
 PARDISO_LIMIT = 20000
-
-#: the backends, the Python module each needs and the extra that installs it
-BACKENDS = {
-    "dense": (None, None),
-    "superlu": (None, None),
-    "pardiso": ("pypardiso", "pardiso"),
-    "cholmod": ("sksparse.cholmod", "cholmod"),
-    "amg": ("pyamg", "amg"),
-    "petsc": ("petsc4py", "petsc"),
-    "petsc-gamg": ("petsc4py", "petsc"),
-}
-
-_INSTALL_NOTES = {
-    "cholmod": " (scikit-sparse compiles against SuiteSparse: first "
-               "`apt-get install libsuitesparse-dev`; on Debian 12 pin "
-               "`scikit-sparse==0.4.16`)",
-    "pardiso": " (installs MKL, about 1 GB)",
-    "petsc": " (petsc4py has no wheel: pip builds PETSc from source, about 20 minutes; "
-             "for MPI put an MPI compiler wrapper (mpicc) on PATH before the build, and "
-             "for MUMPS pass a MUMPS installation in PETSC_CONFIGURE_OPTIONS; see "
-             "docs/performance.md, \"PETSc and MPI\"; on Debian 12 `bash .ci/run-mpi` "
-             "installs it all)",
-}
-_INSTALL_NOTES["petsc-gamg"] = _INSTALL_NOTES["petsc"]
-
-
-class BackendUnavailable(ImportError):
-    """An optional solver backend is not installed."""
-
-
-def _import_backend(name):
-    module, extra = BACKENDS[name]
-    if module is None:
-        return None
-    try:
-        return importlib.import_module(module)
-    except ImportError as err:
-        raise BackendUnavailable(
-            f"the linear solver {name!r} needs the Python package {module.split('.')[0]!r}, "
-            f"which is not installed ({err}); install it with "
-            f"`pip install skfem-rkpm[{extra}]`{_INSTALL_NOTES.get(name, '')}, or choose "
-            f"another solver: {', '.join(available())} are installed") from err
-
-
-def available():
-    """Names of the backends that can be used here (``"auto"`` not included)."""
-    names = []
-    for name, (module, _) in BACKENDS.items():
-        if module is None:
-            names.append(name)
-            continue
-        try:
-            importlib.import_module(module)
-        except ImportError:
-            continue
-        names.append(name)
-    return names
-
-
-def is_symmetric(A, rtol=1e-12):
-    """True if ``|A - Aᵀ| ≤ rtol · |A|`` entrywise in the max norm."""
-    if sp.issparse(A):
-        A = sp.csr_matrix(A)
-        diff = abs(A - A.T)
-        scale = abs(A).max() if A.nnz else 0.0
-        return (diff.max() if diff.nnz else 0.0) <= rtol * scale
-    A = np.asarray(A)
-    return np.abs(A - A.T).max(initial=0.0) <= rtol * np.abs(A).max(initial=0.0)
-
-
-class Solver:
-    """Factor a square matrix, then solve with it.
-
-    Subclasses implement ``_analyze(A)`` (symbolic work, pattern only),
-    ``_factor(A)`` (numeric work) and ``_solve(b)``.  ``stats`` counts the
-    analyses and factorizations and records the seconds spent.
-    """
-
-    name = "?"
-    #: the backend needs a symmetric positive definite matrix
-    spd_only = False
-
-    def __init__(self, symmetric=None, **options):
-        self.symmetric = symmetric
-        self.options = options
-        self.A = None
-        self._pattern = None
-        self.stats = dict(analyses=0, factorizations=0, solves=0,
-                          analyze_seconds=0.0, factor_seconds=0.0, solve_seconds=0.0)
-
-    # -- interface -----------------------------------------------------
-    def factor(self, A):
-        """Factor ``A``; reuse the symbolic analysis if the pattern is unchanged."""
-        A = _canonical(A)
-        if A.shape[0] != A.shape[1]:
-            raise ValueError(f"the matrix must be square, it is {A.shape[0]} x {A.shape[1]}")
-        if not self._same_pattern(A):
-            clock = time.perf_counter()
-            self._analyze(A)
-            self.stats["analyses"] += 1
-            self.stats["analyze_seconds"] += time.perf_counter() - clock
-            self._pattern = (A.shape, A.indptr.copy(), A.indices.copy())
-        clock = time.perf_counter()
-        self.A = A
-        self._factor(A)
-        self.stats["factorizations"] += 1
-        self.stats["factor_seconds"] += time.perf_counter() - clock
-        return self
-
-    def solve(self, b):
-        """Solve ``A x = b`` with the last factored ``A`` (``b`` 1-D or 2-D)."""
-        if self.A is None:
-            raise RuntimeError("call factor(A) before solve(b)")
-        b = np.asarray(b, dtype=float)
-        if b.shape[0] != self.A.shape[0]:
-            raise ValueError(f"the right-hand side has {b.shape[0]} rows, the matrix "
-                             f"{self.A.shape[0]}")
-        clock = time.perf_counter()
-        x = self._solve(b)
-        self.stats["solves"] += 1
-        self.stats["solve_seconds"] += time.perf_counter() - clock
-        return x
-
-    def describe(self):
-        """One line: the backend and its settings."""
-        return self.name
-
-    def reset(self):
-        """Forget the stored analysis and factor."""
-        self.A = None
-        self._pattern = None
-
-    # -- helpers -------------------------------------------------------
-    def _same_pattern(self, A):
-        if self._pattern is None:
-            return False
-        shape, indptr, indices = self._pattern
-        return (shape == A.shape and len(indices) == len(A.indices)
-                and np.array_equal(indptr, A.indptr) and np.array_equal(indices, A.indices))
-
-    def _analyze(self, A):
-        pass
-
-    def __repr__(self):
-        return f"<{type(self).__name__}: {self.describe()}>"
-
-
-def _canonical(A):
-    if not sp.issparse(A):
-        A = sp.csr_matrix(np.asarray(A, dtype=float))
-    A = sp.csr_matrix(A, dtype=float)
-    A.sum_duplicates()
-    A.sort_indices()
-    return A
-
-
-def _refine(A, b, x, solve, steps=2, rtol=1e-13):
-    """Iterative refinement: at most ``steps`` corrections while the residual is large."""
-    nb = np.linalg.norm(b)
-    for _ in range(steps):
-        r = b - A @ x
-        if np.linalg.norm(r) <= rtol * nb:
-            break
-        x = x + solve(r)
-    return x
-
 
 class DenseLU(Solver):
     """LAPACK LU with partial pivoting of the dense matrix."""
@@ -446,7 +281,7 @@ class AMG(Solver):
 
 
 _CLASSES = {"dense": DenseLU, "superlu": SuperLU, "pardiso": Pardiso,
-            "cholmod": Cholmod, "amg": AMG}
+            "cholmod": Cholmod, "amg": AMG, "petsc": PETScLU, "petsc-gamg": PETScGAMG}
 
 
 class Auto(Solver):
@@ -555,114 +390,3 @@ def make_solver(name="auto", symmetric=None, **options):
                          f"matrices, and these are declared non-symmetric; use "
                          f"'superlu', 'pardiso' or 'auto'")
     return _CLASSES[name](symmetric, **options)
-
-
-def _penalty(K, C):
-    """Penalty factor ρ of the augmented Lagrangian: 10 × diag(K) / diag(CᵀC)."""
-    kd = np.abs(K.diagonal()).max(initial=0.0)
-    cd = np.asarray(C.multiply(C).sum(axis=0)).ravel().max(initial=0.0)
-    return 10.0 * (kd if kd > 0 else 1.0) / (cd if cd > 0 else 1.0)
-
-
-def solve_saddle_point(solver, K, f, C, g, rtol=1e-13, maxiter=200):
-    """Solve ``K d = f + Cᵀ λ``, ``C d = g`` with ``solver``; return ``d``, ``λ``.
-
-    Backends that factor indefinite matrices (dense, SuperLU, PARDISO) solve
-    the saddle-point system ``[[K, Cᵀ], [C, 0]] [d; -λ] = [f; g]`` directly.
-
-    SPD-only backends (CHOLMOD, AMG) use the augmented Lagrangian: with
-    ``K_ρ = K + ρ CᵀC``, symmetric positive definite whenever the
-    constraints remove the rigid-body modes of ``K``, the system becomes
-    ``K_ρ d = f + ρ Cᵀ g + Cᵀ λ`` and ``λ`` solves the Schur complement
-    system ``C K_ρ⁻¹ Cᵀ λ = g - C K_ρ⁻¹ (f + ρ Cᵀ g)`` by conjugate
-    gradients, one solve with the factored ``K_ρ`` per iteration.  The
-    eigenvalues of ``(C K_ρ⁻¹ Cᵀ)⁻¹`` lie in ``[ρ, ρ + μ]`` with ``μ`` of
-    the order of ``|K|``, so with ``ρ = 10 |K| / |CᵀC|`` CG needs a handful
-    of iterations, independent of the mesh.  ``λ`` converges to ``rtol``
-    relative to ``|f| + ρ |g|``.
-    """
-    N = K.shape[0]
-    K = _canonical(K)
-    m = C.shape[0]
-    if m == 0:
-        _factor(solver, K, spd=True)
-        return solver.solve(f), np.zeros(0)
-    C = sp.csr_matrix(C)
-    backend = solver
-    if isinstance(solver, Auto):
-        name = solver.choose(sp.csr_matrix((N + m, N + m)))
-        if name == "superlu" and solver.choose(K, spd=True) == "cholmod":
-            name = "cholmod"  # CHOLMOD on K + ρCᵀC beats SuperLU on the KKT matrix
-        backend = solver.backend(name)
-    if backend.spd_only:
-        rho = _penalty(K, C)
-        Krho = _canonical(K + rho * (C.T @ C))
-        try:
-            backend.factor(Krho)
-        except NotPositiveDefinite:
-            if backend is solver:
-                raise
-            backend = solver.backend("superlu")  # auto: the tangent is indefinite
-        else:
-            solver.A = Krho
-            return _augmented_lagrangian(backend, Krho, rho, f, C, g, rtol, maxiter)
-    A = _canonical(sp.bmat([[K, C.T], [C, None]]))
-    backend.factor(A)
-    solver.A = A
-    sol = backend.solve(np.concatenate([f, g]))
-    return sol[:N], -sol[N:]
-
-
-def _augmented_lagrangian(solver, Krho, rho, f, C, g, rtol, maxiter):
-    """CG on the Schur complement ``C K_ρ⁻¹ Cᵀ λ = g - C K_ρ⁻¹ (f + ρ Cᵀ g)``."""
-    m = C.shape[0]
-    rhs = f + rho * (C.T @ g)
-    d0 = solver.solve(rhs)
-    lam = np.zeros(m)
-    r = g - C @ d0
-    stop = rtol * max(np.linalg.norm(g), np.linalg.norm(C @ d0), 1e-300)
-    p = r.copy()
-    rr = r @ r
-    for _ in range(maxiter):
-        if np.sqrt(rr) <= stop:
-            break
-        Sp = C @ solver.solve(C.T @ p)
-        alpha = rr / (p @ Sp)
-        lam += alpha * p
-        r -= alpha * Sp
-        rr_new = r @ r
-        p = r + (rr_new / rr) * p
-        rr = rr_new
-    else:
-        raise np.linalg.LinAlgError(
-            f"the augmented Lagrangian iterations did not converge in {maxiter} "
-            f"iterations (constraint residual {np.sqrt(rr):.2e}, wanted {stop:.2e}); the "
-            f"tangent may not be positive definite on the constrained space: use solver "
-            f"'superlu' or 'pardiso'")
-    return solver.solve(rhs + C.T @ lam), lam
-
-
-def _factor(solver, A, spd):
-    if isinstance(solver, Auto):
-        solver.factor(A, spd=spd)
-    else:
-        solver.factor(A)
-
-
-# the PETSc backends live in .distributed (which imports Solver from here)
-from .petsc import PETScGAMG, PETScLU  # noqa: E402
-
-_CLASSES.update({"petsc": PETScLU, "petsc-gamg": PETScGAMG})
-
-
-def _register_scene_choices():
-    """Let the scene key ``steps.solver`` accept every backend of :data:`BACKENDS`."""
-    import dataclasses
-
-    from ..runs import scene
-
-    spec = scene.SCHEMA["steps"]["solver"]
-    scene.SCHEMA["steps"]["solver"] = dataclasses.replace(spec, choices=("auto", *BACKENDS))
-
-
-_register_scene_choices()

@@ -19,7 +19,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..approximation.constraints import nodal_constraint, solve_constrained, weak_constraint
+from ..approximation.constraints import nodal_constraint, weak_constraint
+from .constrained import solve_constrained
 from .linear import make_solver
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 

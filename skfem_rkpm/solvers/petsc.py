@@ -23,7 +23,7 @@ Backends (``make_solver(name)`` in :mod:`skfem_rkpm.solvers.linear`):
     GAMG preconditioning CG (symmetric matrices) or GMRES, relative
     residual ``rtol`` (1e-12); positive definite matrices only, so the
     constraints go through the augmented Lagrangian of
-    :func:`~skfem_rkpm.solvers.linear.solve_saddle_point`.
+    :func:`~skfem_rkpm.solvers.constrained.solve_saddle_point`.
 
 Both take ``points`` (dim x N, the location of every dof, e.g.
 ``basis.doflocs``) to partition by coordinates; without them the rows are
@@ -36,7 +36,7 @@ import os
 import numpy as np
 import scipy.sparse as sp
 
-from .linear import Solver, _import_backend, _refine, is_symmetric
+from .backend import Solver, _import_backend, _refine, is_symmetric
 
 __all__ = ["world", "is_root", "bisection", "row_owners", "PETScLU", "PETScGAMG"]
 

@@ -13,7 +13,7 @@ from skfem import BilinearForm, FacetBasis, LinearForm, asm
 from skfem.helpers import ddot, dot, sym_grad, trace
 
 from ..assembly import Assembler, isotropic_tangent
-from ..approximation.constraints import solve
+from ..solvers.constrained import solve
 
 __all__ = ["lame", "stress_from_voigt", "facet_basis", "nitsche_terms",
            "solve_elasticity", "error_norms"]

@@ -18,7 +18,7 @@ from skfem import LinearForm, asm
 from skfem.helpers import dot
 
 from ..assembly import Assembler, isotropic_tangent
-from ..approximation.constraints import solve
+from ..solvers.constrained import solve
 from .elasticity import error_norms, facet_basis, lame, stress_from_voigt
 from .exact import (kirsch_displacement, kirsch_stress, timoshenko_displacement,
                     timoshenko_stress)

@@ -18,7 +18,7 @@ reduction on the side surface next to each platen rolls over onto it.
 Without contact the side nodes pass through the platen and the corner cells
 invert (``--fold none`` shows it: the F-bar runs stop at 25-35 %
 reduction).  By default the side particles meet the two platens as rigid tools
-(:class:`skfem_rkpm.mechanics.contact.RigidContact`, nodal collocation,
+(:class:`skfem_rkpm.mechanics.rigid_contact.RigidContact`, nodal collocation,
 default penalty): with perfect stick (``--fold stick``) or frictionless
 (``--fold slip``).  The platen force is the reaction of the prescribed top
 nodes plus the contact force of the top platen on the folded sides.
@@ -54,7 +54,8 @@ from skfem import Basis, ElementQuad1, ElementVector  # noqa: E402
 from skfem_rkpm import RKBasis  # noqa: E402
 from skfem_rkpm.runs.io import (FieldWriter, cell_averages, nodal_displacements,  # noqa: E402
                            write_history)
-from skfem_rkpm.mechanics.contact import Platen, RigidContact  # noqa: E402
+from skfem_rkpm.mechanics.rigid_contact import RigidContact  # noqa: E402
+from skfem_rkpm.mechanics.tools import Platen  # noqa: E402
 from skfem_rkpm.mechanics.materials import J2Material, swift  # noqa: E402
 from skfem_rkpm.mechanics.problem import SolidProblem  # noqa: E402
 from skfem_rkpm.meshes import rectangle  # noqa: E402

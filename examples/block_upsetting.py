@@ -30,7 +30,8 @@ import numpy as np  # noqa: E402
 from skfem import Basis, ElementQuad1, ElementVector  # noqa: E402
 
 from skfem_rkpm import RKBasis, transformation  # noqa: E402
-from skfem_rkpm.mechanics.contact import Platen, RigidContact  # noqa: E402
+from skfem_rkpm.mechanics.rigid_contact import RigidContact  # noqa: E402
+from skfem_rkpm.mechanics.tools import Platen  # noqa: E402
 from skfem_rkpm.mechanics.materials import J2Material, linear  # noqa: E402
 from skfem_rkpm.mechanics.problem import SolidProblem  # noqa: E402
 from skfem_rkpm.meshes import rectangle  # noqa: E402

@@ -10,14 +10,17 @@ import importlib
 import warnings
 
 
-def forward(old, *new):
+def forward(old, *new, renamed=None):
     """``(__getattr__, __all__)`` for the module ``old`` whose names moved to
-    the modules ``new`` (looked up in that order)."""
+    the modules ``new`` (looked up in that order); ``renamed`` maps old names
+    to their new ones."""
+    renamed = renamed or {}
     warnings.warn(f"{old} moved to {' and '.join(new)}: import from there ({old} goes "
                   f"in the next release)", DeprecationWarning, stacklevel=3)
     modules = [importlib.import_module(name) for name in new]
 
     def __getattr__(name):
+        name = renamed.get(name, name)
         for module in modules:
             if hasattr(module, name):
                 return getattr(module, name)

@@ -18,9 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from skfem import FacetBasis
 from skfem.element import ElementVector
 
-__all__ = ["Layout", "layout", "axisymmetric_layout", "Assembler", "isotropic_tangent"]
+__all__ = ["Layout", "layout", "axisymmetric_layout", "Assembler", "isotropic_tangent",
+           "facet_basis"]
 
 #: most cells per block of the local computations
 CELLS_PER_BLOCK = 256
@@ -353,3 +355,13 @@ class Assembler:
         # H[E, q, m, c] = Σ_a ∂_m N_a [E, q, m, a] U[E, a, c]
         H = self._trial_grads(slice(None)) @ U.transpose(1, 0, 2)[:, None]
         return H.transpose(3, 2, 0, 1)
+
+
+def facet_basis(basis, facets=None):
+    """The facet basis matching ``basis`` on a named boundary (default: all)."""
+    if hasattr(basis, "element_nodes"):
+        return basis.boundary(facets)
+    if isinstance(facets, str):
+        facets = basis.mesh.boundaries[facets]
+    return FacetBasis(basis.mesh, basis.elem, facets=facets,
+                      intorder=2 * basis.elem.maxdeg + 2)

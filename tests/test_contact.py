@@ -9,9 +9,12 @@ from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad
 
 from skfem_rkpm import RKBasis
 from skfem_rkpm.verification.exact import uniaxial_compression
-from skfem_rkpm.mechanics.contact import (Arc, NodeToSegmentContact, Platen, Polyline,
-                                          RigidContact, STICK_FRICTION, coulomb, from_scene, polyline,
-                                          slave_points)
+from skfem_rkpm.mechanics.deformable_contact import NodeToSegmentContact
+from skfem_rkpm.mechanics.friction import coulomb, STICK_FRICTION
+from skfem_rkpm.mechanics.rigid_contact import RigidContact
+from skfem_rkpm.mechanics.slave_points import slave_points
+from skfem_rkpm.mechanics.tools import Arc, Platen, Polyline, polyline
+from skfem_rkpm.runs.build import tool_from_scene
 from skfem_rkpm.mechanics.materials import J2Material, linear
 from skfem_rkpm.mechanics.problem import SolidProblem
 from skfem_rkpm.meshes import rectangle
@@ -539,10 +542,10 @@ def test_from_scene_builds_the_tool_contact():
     section = {"kind": "polyline", "points": [[2, 1], [-1, 1]], "fillet": 0.0,
                "motion": [0.0, -0.1], "friction": "stick", "slaves": ["top"],
                "penalty": 1e6, "collocation": "quadrature"}
-    contact = from_scene("die", section, problem.basis, problem)
+    contact = tool_from_scene("die", section, problem.basis, problem)
     assert contact.name == "die" and contact.mu == STICK_FRICTION
     assert contact.omega_n == 1e6 and contact.collocation == "quadrature"
-    arc = from_scene("punch", {"kind": "arc", "center": [0.5, 2.0], "radius": 1.0,
+    arc = tool_from_scene("punch", {"kind": "arc", "center": [0.5, 2.0], "radius": 1.0,
                                "angles": [0.0, -180.0]}, problem.basis, problem)
     assert arc.tool.project(np.array([[0.5], [0.5]])).gap[0] == pytest.approx(0.5)
 

@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from skfem_rkpm import RKBasis
-from skfem_rkpm.mechanics.contact import Arc, Platen, Polyline
+from skfem_rkpm.mechanics.tools import Arc, Platen, Polyline
 from skfem_rkpm.mechanics.materials import J2Material, linear, perfect, swift
 from skfem_rkpm.meshes import gmsh_rectangle, graded_rectangle, load, rectangle
 from skfem_rkpm.runs.runner import build, run

@@ -12,7 +12,9 @@ import pytest
 from skfem import Basis, ElementQuad1, ElementQuad2, ElementVector, MeshQuad, MeshQuad1
 
 from skfem_rkpm import RKBasis
-from skfem_rkpm.mechanics.contact import DEFAULT_PENALTY_FACTOR, Platen, RigidContact
+from skfem_rkpm.mechanics.friction import DEFAULT_PENALTY_FACTOR
+from skfem_rkpm.mechanics.rigid_contact import RigidContact
+from skfem_rkpm.mechanics.tools import Platen
 from skfem_rkpm.mechanics.materials import Hardening, J2Material, linear, perfect
 from skfem_rkpm.mechanics.problem import NonFiniteError, SolidProblem
 from skfem_rkpm.meshes import load, rectangle

@@ -1,9 +1,7 @@
 """Build a simulation from a scene and run it with results on disk.
 
-:func:`build` maps the validated scene dict one-to-one onto library objects
-(mesh, basis, :class:`~skfem_rkpm.mechanics.problem.SolidProblem`,
-:class:`~skfem_rkpm.solvers.newton.Prescribed` conditions, pressure loads, rigid
-tools); :func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`
+:func:`~skfem_rkpm.runs.build.build` turns a scene into library objects;
+:func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`
 and writes, after every converged step, ``history.csv``, ``fields.xdmf``
 and a checkpoint, so an interrupted run keeps everything it finished and
 ``resume=True`` continues from the last step.  Under ``mpiexec`` every rank
@@ -12,125 +10,20 @@ runs the same simulation and only rank 0 writes.
 
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from skfem import (Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2,
-                   ElementVector, LinearForm, asm)
-from skfem.helpers import dot
 
-from ..approximation.basis import RKBasis
-from ..solvers.petsc import is_root
-from ..verification.elasticity import facet_basis
-from .io import FieldWriter, write_history
 from ..solvers.linear import make_solver
-from ..mechanics.problem import SolidProblem
-from .scene import SceneError, components, material_from, mesh_from, spacing_radius
-from ..solvers.newton import Prescribed, newton_steps
+from ..solvers.newton import newton_steps
+from ..solvers.petsc import is_root
+from .build import Simulation, build
+from .io import FieldWriter, write_history
 
 __all__ = ["Simulation", "build", "run"]
 
 #: linear solvers that partition the rows by the dof locations
 DISTRIBUTED = ("petsc", "petsc-gamg")
-
-ELEMENTS = {"quad1": ElementQuad1, "quad2": ElementQuad2, "tri1": ElementTriP1,
-            "tri2": ElementTriP2}
-
-
-@dataclass
-class Simulation:
-    """Everything a run needs; each field is a plain library object."""
-
-    scene: dict
-    mesh: object
-    basis: object
-    problem: SolidProblem
-    prescribed: list
-    load: object = None
-    tools: list = field(default_factory=list)
-    points: dict = field(default_factory=dict)
-
-    @property
-    def method(self):
-        return "rkpm" if isinstance(self.basis, RKBasis) else "fem"
-
-
-def build(scene, method=None):
-    """Turn a validated scene (see :func:`skfem_rkpm.runs.scene.load_scene`) into a
-    :class:`Simulation`; ``method`` overrides ``model.method``."""
-    model = scene["model"]["type"]
-    method = method or scene["model"]["method"]
-    mesh = mesh_from(scene["geometry"], scene.get("_base"))
-    boundaries = set((mesh.boundaries or {}).keys())
-    disc = scene["discretization"]
-    if method == "rkpm":
-        basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
-                        support_shape=disc["support_shape"], intorder=disc["quadrature"],
-                        integration=disc["integration"], axisymmetric=model == "axisymmetric",
-                        radius=(spacing_radius(mesh, disc)
-                                if disc["support"] is not None else None),
-                        support=disc["dilation"])
-    else:
-        element = ELEMENTS[disc["element"]]()
-        if element.refdom != mesh.refdom:
-            raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
-                             f"the {type(mesh).__name__} cells")
-        basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
-    locking = disc["locking"]
-    if locking == "auto":
-        sticks = any(section.get("friction") == "stick"
-                     for name, section in scene.items() if name.startswith("tools."))
-        locking = "fbar" if method == "fem" or sticks else "none"
-    locking = None if locking == "none" else locking
-    problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
-
-    prescribed, pressures = [], []
-    for name, section in scene.items():
-        if not name.startswith("boundary."):
-            continue
-        boundary = name.split(".", 1)[1]
-        if boundary not in boundaries:
-            raise SceneError(f"[{name}]: the mesh has no boundary {boundary!r}; it has "
-                             f"{sorted(boundaries)}")
-        for comp in components(section["fix"] or []):
-            prescribed.append(Prescribed(boundary, comp, 0.0, section["method"]))
-        if section["pressure"] is not None:
-            pressures.append((boundary, section["pressure"]))
-    load = _pressure_load(basis, pressures, model) if pressures else None
-    tool_sections = {name: section for name, section in scene.items()
-                     if name.startswith("tools.")}
-    for name, section in tool_sections.items():
-        for slave in section.get("slaves") or []:
-            if slave not in boundaries:
-                raise SceneError(f"[{name}] slaves: the mesh has no boundary {slave!r}; "
-                                 f"it has {sorted(boundaries)}")
-    tools = [_tool(name.split(".", 1)[1], section, basis, problem, scene)
-             for name, section in tool_sections.items()]
-    points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
-    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points)
-
-
-def _pressure_load(basis, pressures, model):
-    """``t -> f_ext`` of dead normal pressures on the reference boundary."""
-    f = np.zeros(basis.N)
-    for boundary, p in pressures:
-        fb = facet_basis(basis, boundary)
-
-        @LinearForm
-        def pressure(v, w, p=p):
-            weight = 2 * np.pi * w.x[0] if model == "axisymmetric" else 1.0
-            return -p * dot(w.n, v) * weight
-
-        f += asm(pressure, fb)
-    return lambda t: t * f
-
-
-def _tool(name, section, basis, problem, scene):
-    """A rigid tool of the scene as a contact contribution."""
-    from ..mechanics import contact
-
-    return contact.from_scene(name, section, basis, problem, scene)
 
 
 def _point_probes(basis, points):

@@ -504,9 +504,9 @@ def material_from(section):
 
 
 def tool_from(name, section):
-    """The rigid :class:`~skfem_rkpm.mechanics.contact.Tool` of a
+    """The rigid :class:`~skfem_rkpm.mechanics.tools.Tool` of a
     ``[tools.NAME]`` section (its geometry and motion)."""
-    from ..mechanics.contact import Arc, Platen, Polyline
+    from ..mechanics.tools import Arc, Platen, Polyline
 
     kind, motion = section.get("kind", "platen"), section.get("motion") or (0.0, 0.0)
     if kind == "platen":

@@ -9,13 +9,13 @@ comparison example and the benchmarks.
 """
 
 import numpy as np
-from skfem import BilinearForm, FacetBasis, LinearForm, asm
-from skfem.helpers import ddot, dot, sym_grad, trace
+from skfem import BilinearForm, LinearForm, asm
+from skfem.helpers import dot, sym_grad, trace
 
-from ..assembly import Assembler, isotropic_tangent
+from ..assembly import Assembler, facet_basis, isotropic_tangent
 from ..solvers.constrained import solve
 
-__all__ = ["lame", "stress_from_voigt", "facet_basis", "nitsche_terms",
+__all__ = ["lame", "stress_from_voigt", "nitsche_terms",
            "solve_elasticity", "error_norms"]
 
 
@@ -37,16 +37,6 @@ def lame(E, nu, plane="strain"):
 def stress_from_voigt(s):
     """(sxx, syy, sxy) of shape (3, ...) to the tensor of shape (2, 2, ...)."""
     return np.array([[s[0], s[2]], [s[2], s[1]]])
-
-
-def facet_basis(basis, facets=None):
-    """The facet basis matching ``basis`` on a named boundary (default: all)."""
-    if hasattr(basis, "element_nodes"):
-        return basis.boundary(facets)
-    if isinstance(facets, str):
-        facets = basis.mesh.boundaries[facets]
-    return FacetBasis(basis.mesh, basis.elem, facets=facets,
-                      intorder=2 * basis.elem.maxdeg + 2)
 
 
 def _traction(u, lam, mu, n):

@@ -1,0 +1,292 @@
+"""Contact of slave points with a moving rigid tool: the Newton
+contribution (force and consistent tangent, Eq. 4.27-4.29) of the penalty
+Coulomb law of :mod:`.friction` at the slave points of :mod:`.slave_points`
+against a tool of :mod:`.tools`.
+
+A node that comes into contact during a step counts its slip from the moment
+it touches (the gap interpolated linearly over the step), so that its
+tangential traction starts from zero, also when it sticks.
+:class:`RigidContact` is a contribution to the Newton iterations of
+:func:`skfem_rkpm.solvers.newton.newton_steps`.
+"""
+
+import numpy as np
+import scipy.sparse as sp
+
+from .friction import (DEFAULT_PENALTY_FACTOR, DEFAULT_TANGENTIAL_FACTOR, ContactState,
+                       _positive, coulomb, default_penalty, friction_coefficient)
+from .problem import NonFiniteError
+from .slave_points import slave_points
+from .tools import Tool
+
+__all__ = ["RigidContact"]
+
+def _outer(a, b):
+    return np.einsum("ni,nj->nij", a, b)
+
+
+def _block_diagonal(blocks):
+    """Sparse block-diagonal matrix of (n, m, m) blocks."""
+    n, m, _ = blocks.shape
+    base = m * np.arange(n)
+    rows = np.broadcast_to(base[:, None, None] + np.arange(m)[None, :, None], blocks.shape)
+    cols = np.broadcast_to(base[:, None, None] + np.arange(m)[None, None, :], blocks.shape)
+    return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
+                         shape=(n * m, n * m))
+
+
+def _directional(G, vectors):
+    """Rows ``v_qᵀ G_q`` (sparse n × N): the derivative of ``v_q · u(x_q)``."""
+    n = vectors.shape[1]
+    P = sp.csr_matrix((vectors.T.ravel(), (np.repeat(np.arange(n), 2), np.arange(2 * n))),
+                      shape=(n, 2 * n))
+    return (P @ G).tocsr()
+
+
+def _curvature_blocks(proj, pressure, shear):
+    """Per point ``∂(-(p n + s t))/∂x`` at fixed tractions ``p, s``:
+    ``-p κ t tᵀ + s κ n tᵀ`` (``∂n/∂x = κ t tᵀ``, ``∂t/∂x = -κ n tᵀ``)."""
+    n, t, kappa = proj.normal.T, proj.tangent.T, proj.curvature
+    return ((-pressure * kappa)[:, None, None] * _outer(t, t)
+            + (shear * kappa)[:, None, None] * _outer(n, t))
+
+
+def _rigid_tangent(pts, proj, Bn, slipped, law, omega_n, omega_t, mu):
+    """Consistent tangent of the rigid-tool contact force (Eq. 4.28-4.29).
+
+    With ``B_n``, ``B_t`` the rows ``n_qᵀ G_q``, ``t_qᵀ G_q`` of the slave
+    points, ``M = Nᵀ w`` (hat functions times point weights; the diagonal
+    of the weights for nodal collocation) and ``W`` the node weights, the
+    nodal gap ``ĝ = W⁻¹ M g`` has the derivative ``W⁻¹ M B_n`` and
+
+        K = ω_n B_nᵀ Mᵀ H W⁻¹ M B_n                        (normal, symmetric)
+          + ω_t B_tᵀ Mᵀ S φ W⁻¹ M a B_t                    (stick)
+          + ω_t B_tᵀ Mᵀ S Δĝ_t φ' W⁻¹ M B_n                (stick, touching)
+          + μ ω_n B_tᵀ Mᵀ sgn(t_t) Σ W⁻¹ M B_n             (slip, non-symmetric)
+          + Gᵀ w (-p κ t tᵀ + s κ n tᵀ) G                  (curved masters)
+
+    ``H``, ``S``, ``Σ`` select the nodes in contact, sticking and slipping,
+    ``a_q = 1 - κ_q (Δξ_q·n_q)`` comes from the rotation of ``t`` and
+    ``φ(ĝ)`` is the part of the step spent in contact (:meth:`RigidContact._law`).
+    """
+    pressure, shear, slip, active, slip_t, phi, dphi = law
+    G, w = pts.G, pts.weights
+    M = pts.weighted_hats
+    inv_W = 1.0 / pts.node_weights
+    K = omega_n * (Bn.T @ M.T @ sp.diags(active * inv_W) @ M @ Bn)
+    if mu > 0:
+        a = 1.0 - proj.curvature * np.einsum("ni,ni->n", slipped, proj.normal.T)
+        Bt = _directional(G, proj.tangent)
+        stick = omega_t * (active & ~slip) * inv_W
+        K = K + Bt.T @ M.T @ (sp.diags(stick * phi) @ M @ sp.diags(a) @ Bt
+                              + sp.diags(stick * slip_t * dphi) @ M @ Bn)
+        sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
+        K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
+    p, s = pts.hats @ pressure, pts.hats @ shear
+    blocks = w[:, None, None] * _curvature_blocks(proj, p, s)
+    return (K + G.T @ _block_diagonal(blocks) @ G).tocsr()
+
+
+def _touch_fraction(gap, previous_gap, was_active):
+    """Part ``φ`` of the step that a node spends in contact, by linear
+    interpolation of its gap from the last converged step, and ``dφ/dĝ``.
+
+    ``φ = 1`` for nodes already in contact; for a node that touches during
+    the step ``φ = -ĝ / (ĝ_0 - ĝ)``, so that its slip is counted from the
+    moment it touches and its tangential traction starts from zero."""
+    g0 = np.where(was_active, 0.0, np.maximum(previous_gap, 0.0))
+    depth = np.maximum(-gap, 0.0)
+    span = g0 + depth
+    safe = np.where(span > 0, span, 1.0)
+    phi = np.where(span > 0, depth / safe, 1.0)
+    dphi = np.where((span > 0) & (gap < 0), -g0 / safe**2, 0.0)
+    return phi, dphi
+
+
+def _warn_if_out_of_reach(tool, X, samples=21):
+    """Warn if ``tool`` stays clear of the reference points ``X`` at every
+    load factor of ``[0, 1]`` (sampled): a misplaced tool or a motion in the
+    wrong direction.  Only a warning: loads may still deform the part onto it."""
+    import warnings
+
+    gaps = [tool.project(X, t).gap.min() for t in np.linspace(0.0, 1.0, samples)]
+    k = int(np.argmin(gaps))
+    if gaps[k] > 0:
+        warnings.warn(f"tool {tool.name!r} does not reach the part during its motion: the "
+                      f"smallest gap to the undeformed slave boundary is {gaps[k]:.4g} "
+                      f"(at t = {k / (samples - 1):g}); unless other loads deform the part "
+                      "onto it, it carries no force; check its position and motion",
+                      stacklevel=3)
+
+
+def _check_finite_traction(traction, X, name):
+    """NonFiniteError naming the first slave point with a NaN or inf traction."""
+    finite = np.isfinite(traction).all(axis=0)
+    if not finite.all():
+        bad = np.flatnonzero(~finite)
+        raise NonFiniteError(
+            f"the contact traction of tool {name!r} is not finite at {bad.size} slave "
+            f"points; first at X = ({X[0, bad[0]]:.4g}, {X[1, bad[0]]:.4g})", bad)
+
+
+class RigidContact:
+    """Penalty frictional contact of a body with a rigid moving tool
+    (Sec. 4.3, Eq. 4.25-4.29), a contribution for
+    :func:`skfem_rkpm.solvers.newton.newton_steps`.
+
+    The contact law (Eq. 4.5-4.6) acts at the boundary particles.  With
+    ``collocation="nodal"`` it sees the gap and slip of the particle itself
+    (the paper).  With ``"quadrature"`` it sees their averages over the
+    boundary Gauss points, weighted by the particle's boundary hat function
+    ``N_K``, and its tractions are interpolated back with the hat
+    functions and integrated at the Gauss points,
+    ``f_I = Σ_q w_q Ψ_I(x_q) t(x_q)``: a uniform traction is then
+    integrated exactly (homogeneous states stay exact for RK bases), with
+    one contact law per particle, as in the nodal case.
+
+    Parameters
+    ----------
+    problem : SolidProblem
+        Supplies the basis, the model and Young's modulus.
+    tool : Tool
+    slaves : str, sequence of str, facet indices, or None
+        Boundaries whose points may touch the tool (default: all).
+    friction : float or "stick"
+        Coulomb coefficient ``μ`` (0: frictionless) or ``"stick"`` (:func:`friction_coefficient`).
+    collocation : {"nodal", "quadrature", "gauss"}
+        See :func:`slave_points`.
+    penalty : float, optional
+        Normal penalty ``ω_n`` per unit area; default
+        ``factor · E / h_c`` (:func:`default_penalty`).
+    tangential_penalty : float, optional
+        ``ω_t`` per unit area; default ``tangential_factor · E / h_c``.
+    factor, tangential_factor : float
+        Factors of the default penalties.
+    intorder : int, optional
+        Facet quadrature degree for ``collocation="quadrature"``.
+    """
+
+    def __init__(self, problem, tool, slaves=None, friction=0.0, collocation="nodal",
+                 penalty=None, tangential_penalty=None, factor=DEFAULT_PENALTY_FACTOR,
+                 tangential_factor=DEFAULT_TANGENTIAL_FACTOR, intorder=None):
+        if not isinstance(tool, Tool):
+            raise TypeError(f"tool must be a Tool (Platen, Polyline, Arc), not {tool!r}")
+        self.problem, self.tool, self.name = problem, tool, tool.name
+        self.mu = friction_coefficient(friction)
+        self.collocation = collocation
+        self.points = slave_points(problem.basis, slaves, collocation, problem.model,
+                                   intorder)
+        self.omega_n = (default_penalty(problem.material.E, self.points.spacing, factor)
+                        if penalty is None else _positive(penalty, "penalty"))
+        self.omega_t = (default_penalty(problem.material.E, self.points.spacing,
+                                        tangential_factor)
+                        if tangential_penalty is None
+                        else _positive(tangential_penalty, "tangential penalty"))
+        self.state = self.trial = self._initial_state()
+        _warn_if_out_of_reach(tool, self.points.X)
+
+    def _initial_state(self):
+        X, m = self.points.X, self.points.m
+        proj = self.tool.project(X, 0.0)
+        relative = X - self.tool.translation(0.0)[:, None]
+        return ContactState(X.copy(), proj.gap, proj.normal, proj.tangent, relative,
+                            self.points.average(proj.gap), np.zeros(m), np.zeros(m),
+                            np.zeros(m, bool), np.zeros(m, bool), np.zeros(2))
+
+    def _law(self, proj, slipped):
+        """Nodal tractions (Eq. 4.5-4.6, 4.11) from the nodal gap ``ĝ`` and
+        slip ``Δĝ_t`` (the particle's own, or hat-weighted averages of the
+        Gauss point values ``g_n`` and ``Δg_t = Δξ·t``):
+        ``t_n = ω_n ⟨-ĝ⟩``, the trial ``t_t,n - ω_t φ Δĝ_t`` with the part
+        ``φ`` of the step spent in contact, and Coulomb's return map."""
+        pts, state = self.points, self.state
+        node_gap = pts.average(proj.gap)
+        active = node_gap <= 0.0
+        pressure = self.omega_n * np.maximum(-node_gap, 0.0)
+        slip_t = pts.average(np.einsum("ni,ni->n", slipped, proj.tangent.T))
+        phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
+        shear, slip = coulomb(pressure, state.shear - self.omega_t * phi * slip_t, self.mu)
+        law = (pressure, np.where(active, shear, 0.0), slip & active, active, slip_t, phi,
+               dphi)
+        return node_gap, law
+
+    def evaluate(self, d, t):
+        """Contact force (added to the internal force) and its tangent at
+        coefficients ``d`` and load factor ``t``."""
+        pts = self.points
+        x = pts.X + pts.displacements(d)
+        proj = self.tool.project(x, t)
+        relative = x - self.tool.translation(t)[:, None]
+        slipped = (relative - self.state.relative).T
+        node_gap, law = self._law(proj, slipped)
+        pressure, shear = law[0], law[1]
+        traction = (pts.hats @ pressure) * proj.normal + (pts.hats @ shear) * proj.tangent
+        _check_finite_traction(traction, pts.X, self.name)
+        f = pts.G.T @ (-(pts.weights * traction)).T.ravel()
+        Bn = _directional(pts.G, proj.normal)
+        K = _rigid_tangent(pts, proj, Bn, slipped, law, self.omega_n, self.omega_t, self.mu)
+        self._normal_rows = Bn  # for touching(): the linearized gaps
+        self.trial = ContactState(x, proj.gap, proj.normal, proj.tangent, relative,
+                                  node_gap, pressure, shear, law[2], law[3],
+                                  (pts.weights * traction).sum(axis=1))
+        return f, K
+
+    def touching(self, delta):
+        """Penalty force and stiffness of the contact nodes that the update
+        ``delta`` would bring into contact, in the linear model of the last
+        evaluation.
+
+        A node that is apart at the last evaluation has no stiffness in
+        the tangent, so a Newton update may push it deep into the tool (a
+        die node under a punch stroke).  Its linearized gap after the
+        update is ``ĝ + Ĝ δ`` with ``Ĝ = W⁻¹ M B_n``; if that is negative,
+        the normal law of Eq. (4.5) acts in the linear model as the force
+        ``ω_n Ĝᵀ W ĝ`` plus the stiffness ``ω_n Ĝᵀ W Ĝ``, which
+        :func:`skfem_rkpm.solvers.newton.newton_steps` adds before it solves again
+        (an active-set iteration).  Returns ``(nodes, f, K)`` (``nodes`` a
+        boolean mask of the touching nodes) or ``None`` if no node is
+        predicted to touch.
+        """
+        apart = ~self.trial.active
+        if not apart.any():
+            return None
+        pts = self.points
+        rows = (pts.weighted_hats @ self._normal_rows) / pts.node_weights[:, None]
+        predicted = self.trial.node_gap + rows @ delta
+        touching = apart & (predicted < 0.0)
+        if not touching.any():
+            return None
+        scale = self.omega_n * pts.node_weights * touching
+        f = rows.T @ (scale * self.trial.node_gap)
+        K = rows.T @ sp.diags(scale) @ rows
+        return touching, f, K.tocsr()
+
+    def commit(self):
+        """Accept the last evaluation as the converged state (Eq. 4.11)."""
+        self.state = self.trial
+
+    def resultants(self):
+        """``{tool name: (Fx, Fy)}``, the force of the tool on the body."""
+        return {self.name: self.state.force.copy()}
+
+    def penetration(self):
+        """Largest penetration ``max(-g_n, 0)`` at the last evaluation."""
+        return self.trial.penetration
+
+    def gauges(self, t):
+        """Tool position and penetration, for output tables."""
+        dx = self.tool.translation(t)
+        return {f"{self.name} dx": float(dx[0]), f"{self.name} dy": float(dx[1]),
+                f"{self.name} penetration": self.penetration()}
+
+    def get_state(self):
+        """The committed state (for checkpoints)."""
+        return self.state
+
+    def set_state(self, state):
+        """Restore a state returned by :meth:`get_state`."""
+        if state.gap.shape != (self.points.n,) or state.shear.shape != (self.points.m,):
+            raise ValueError("the state belongs to a contact with different slave points")
+        self.state = self.trial = state
+
+

@@ -1,0 +1,313 @@
+"""The slave points of a contact boundary, where gaps are measured and
+contact forces applied (Sec. 4 of Chen, Pan, Roque & Wang 1998).
+
+The contact law acts at the boundary particles (contact nodes ``K``); the
+slave points depend on ``collocation``:
+
+``"nodal"``
+    The paper's choice: the boundary particles themselves, at their current
+    positions ``x = X + û`` with the nodal displacements ``û = Λᵀ d``
+    (Eq. 3.32).  The nodal contact forces ``f̂`` (Eq. 4.27) and stiffness
+    ``K̂`` (Eq. 4.28-4.29), weighted by the tributary area
+    ``W_K = ∫_Γ N_K dΓ`` of the particle (hat functions ``N_K`` on the
+    boundary facets, with ``2πR`` for axisymmetric models), go back to the
+    coefficients as ``f = Λ f̂``, ``K = Λ K̂ Λᵀ``.
+``"quadrature"``
+    The Gauss points ``x_q`` of the boundary facets, with
+    ``u(x_q) = Σ_I Ψ_I(x_q) d_I``.  The particle ``K`` sees the hat-weighted
+    averages ``ĝ_K = Σ_q N_K(x_q) w_q g_q / W_K`` of the gaps and slips (a
+    mortar-type weighted gap), and its tractions are interpolated back,
+    ``t(x_q) = Σ_K N_K(x_q) t_K``, and integrated as
+    ``f_I = Σ_q w_q Ψ_I(x_q) t(x_q)``.  A uniform traction is then
+    integrated exactly, so a homogeneous compression stays exact for RK
+    bases, which nodal forces ``Σ_K Ψ_I(X_K) f̂_K`` cannot achieve; and
+    there is one law per particle, as in the nodal case.  At a corner of
+    the slave surface the particle carries one law per side, so that a
+    weighted gap never mixes two faces.
+``"gauss"``
+    The law at every Gauss point.  Exact for homogeneous states too, but
+    with three Gauss points per facet the boundary is over-constrained and
+    friction converges badly (measured in ``docs/contact.md``).
+
+All are written as ``u_points = G d`` with a sparse ``G`` (rows of ``Λᵀ``,
+or shape function values at boundary Gauss points) so that
+``f = Gᵀ f_points`` and ``K = Gᵀ K_points G``; for a finite element basis
+``Λ`` is the identity.
+"""
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..approximation.constraints import transformation
+
+__all__ = ["SlavePoints", "slave_points"]
+
+_TWO_PI = 2.0 * np.pi
+# slave points
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class SlavePoints:
+    """Slave points on the workpiece boundary and the contact nodes that
+    carry the contact law.
+
+    Attributes
+    ----------
+    X : ndarray (2, n)
+        Reference positions of the points.
+    weights : ndarray (n,)
+        Boundary area of each point (``2πR`` included for axisymmetric
+        models).
+    G : sparse (2n, N)
+        Displacements of the points, interleaved ``(u_x, u_y)`` per point,
+        are ``G @ d``.
+    spacing : float
+        Mean length ``h_c`` of the slave boundary facets.
+    hats : sparse (n, m)
+        Values ``N_K(x_q)`` of the boundary hat function of contact node
+        ``K`` at the points (the identity for nodal collocation).
+    node_weights : ndarray (m,)
+        ``W_K = Σ_q N_K(x_q) w_q = ∫_Γ N_K dΓ``.
+    nodes : ndarray (m,) or None
+        Mesh vertex of each contact node.
+    """
+
+    X: np.ndarray
+    weights: np.ndarray
+    G: object
+    spacing: float
+    hats: object
+    node_weights: np.ndarray
+    nodes: np.ndarray = None
+
+    @property
+    def n(self):
+        return self.X.shape[1]
+
+    @property
+    def m(self):
+        return self.node_weights.shape[0]
+
+    @cached_property
+    def weighted_hats(self):
+        """``M = Nᵀ diag(w)`` (m × n): nodal integrals of point values."""
+        return (self.hats.T @ sp.diags(self.weights)).tocsr()
+
+    def displacements(self, d):
+        """Displacements (2, n) of the points for coefficients ``d``."""
+        return (self.G @ d).reshape(-1, 2).T
+
+    def average(self, values):
+        """Hat-weighted nodal averages ``Σ_q N_K(x_q) w_q v_q / W_K``."""
+        return (self.hats.T @ (self.weights * values)) / self.node_weights
+
+
+def _facets(mesh, boundaries):
+    """Facet indices of boundary names (or of the whole boundary)."""
+    named = mesh.boundaries or {}
+    if boundaries is None:
+        return np.asarray(mesh.boundary_facets())
+    if isinstance(boundaries, str):
+        boundaries = [boundaries]
+    if isinstance(boundaries, np.ndarray) and boundaries.dtype.kind in "iu":
+        return np.unique(boundaries)
+    out = []
+    for b in boundaries:
+        if isinstance(b, str):
+            if b not in named:
+                raise ValueError(f"the mesh has no boundary named {b!r}; it has "
+                                 f"{sorted(named)}")
+            out.append(np.asarray(named[b]))
+        else:
+            out.append(np.atleast_1d(np.asarray(b, dtype=np.int64)))
+    if not out:
+        raise ValueError("no slave boundary given")
+    return np.unique(np.concatenate(out))
+
+
+def _facet_spacing(mesh, facets):
+    """Mean reference length of the facets: the spacing ``h_c``."""
+    e = mesh.p[:, mesh.facets[1, facets]] - mesh.p[:, mesh.facets[0, facets]]
+    return float(np.mean(np.linalg.norm(e, axis=0)))
+
+
+def _scalar_value_matrix(fb):
+    """Sparse (facet quadrature points × scalar dofs) values of a FacetBasis."""
+    nq = fb.X.shape[-1]
+    rows = np.arange(fb.nelems * nq).reshape(fb.nelems, nq)
+    data = [np.asarray(fb.basis[i][0]).ravel() for i in range(fb.Nbfun)]
+    cols = [np.repeat(fb.element_dofs[i], nq) for i in range(fb.Nbfun)]
+    return sp.csr_matrix((np.concatenate(data),
+                          (np.tile(rows.ravel(), fb.Nbfun), np.concatenate(cols))),
+                         shape=(fb.nelems * nq, fb.N))
+
+
+def _boundary_quadrature(mesh, facets, intorder, axisymmetric):
+    """Gauss points (2, nq) and weights (with ``2πR``) on the facets, and the
+    facet hat functions there (sparse nq × nvertices)."""
+    from skfem import FacetBasis
+
+    fb = FacetBasis(mesh, type(mesh).elem(), facets=facets, intorder=intorder)
+    x = np.asarray(fb.global_coordinates()).reshape(2, -1)
+    w = np.asarray(fb.dx).ravel()
+    if axisymmetric:
+        w = _TWO_PI * x[0] * w
+    return x, w, _scalar_value_matrix(fb)
+
+
+def _is_rk(basis):
+    return hasattr(basis, "element_nodes") and hasattr(basis, "nodal_matrix")
+
+
+def _check_2d(basis, model):
+    if basis.mesh.dim() != 2 or model == "3d":
+        raise ValueError("contact is implemented for 2D models (plane strain, "
+                         "axisymmetric) only")
+    if model not in ("plane_strain", "axisymmetric"):
+        raise ValueError(f"model must be 'plane_strain' or 'axisymmetric', not {model!r}")
+
+
+def _vertex_dof_check(basis):
+    mesh = basis.mesh
+    if _is_rk(basis):
+        if basis.nodes is not mesh.p and not (basis.nodes.shape == mesh.p.shape
+                                              and np.allclose(basis.nodes, mesh.p)):
+            raise ValueError("nodal collocation needs the particles at the mesh "
+                             "vertices; use collocation='quadrature'")
+    elif basis.N != 2 * mesh.nvertices:
+        raise ValueError("nodal collocation needs one dof per vertex and component "
+                         "(linear elements); use collocation='quadrature'")
+
+
+def _interleaved(nodes):
+    """Vector dofs ``2K, 2K + 1`` of nodes ``K``, point-major."""
+    return (2 * np.asarray(nodes)[:, None] + np.arange(2)[None]).ravel()
+
+
+def _nodal_points(basis, facets, axisymmetric):
+    """Boundary particles with hat-function weights ``w_K = ∫_Γ N_K dΓ`` and
+    ``G`` = the rows of ``Λᵀ`` (Eq. 3.33) of their nodal values."""
+    mesh = basis.mesh
+    _vertex_dof_check(basis)
+    _, w, hats = _boundary_quadrature(mesh, facets, 2, axisymmetric)
+    nodes = np.unique(mesh.facets[:, facets])
+    weights = np.asarray(hats.T @ w).ravel()[nodes]
+    G = transformation(basis)[_interleaved(nodes)]
+    return SlavePoints(mesh.p[:, nodes], weights, sp.csr_matrix(G),
+                       _facet_spacing(mesh, facets), sp.identity(len(nodes), format="csr"),
+                       weights, nodes)
+
+
+def _quadrature_points(basis, facets, axisymmetric, intorder, pointwise=False):
+    """Gauss points of the boundary facets, with ``G`` built from the shape
+    functions there: ``Ψ_I(x_q)`` (RK) or the element's facet values (FEM);
+    the contact nodes are the boundary vertices with their hat functions
+    (or, ``pointwise``, every Gauss point is its own contact node)."""
+    from skfem import FacetBasis
+
+    mesh = basis.mesh
+    if intorder is None:
+        intorder = getattr(basis, "intorder", None) or 2 * basis.elem.maxdeg
+    x, w, hats = _boundary_quadrature(mesh, facets, intorder, axisymmetric)
+    if _is_rk(basis):
+        S = basis._shape_table(x, gradients=False).matrix()
+    else:
+        scalar = basis.elem.elem if hasattr(basis.elem, "elem") else basis.elem
+        S = _scalar_value_matrix(FacetBasis(mesh, scalar, facets=facets,
+                                            intorder=intorder))
+    G = sp.kron(S, sp.identity(2), format="csr")
+    spacing = _facet_spacing(mesh, facets)
+    if pointwise:
+        return SlavePoints(x, w, G, spacing, sp.identity(len(w), format="csr"), w)
+    hats, nodes = _split_at_corners(mesh, facets, hats)
+    return SlavePoints(x, w, G, spacing, hats, np.asarray(hats.T @ w).ravel(), nodes)
+
+
+#: facets meeting at more than this angle make a corner of the slave surface
+CORNER_ANGLE = 30.0
+
+
+def _corner_vertices(mesh, fv):
+    """Vertices where exactly two slave facets meet at more than
+    :data:`CORNER_ANGLE` degrees, and the second of the two facets (index
+    into the slave facets), given the facet vertices ``fv`` (2, nf)."""
+    d = mesh.p[:, fv[1]] - mesh.p[:, fv[0]]
+    d /= np.linalg.norm(d, axis=0)
+    verts = fv.T.ravel()
+    order = np.argsort(verts, kind="stable")
+    facet = order // 2
+    vertex, start, count = np.unique(verts[order], return_index=True, return_counts=True)
+    two = count == 2
+    a, b = facet[start[two]], facet[start[two] + 1]
+    sharp = np.abs(d[0, a] * d[1, b] - d[1, a] * d[0, b]) > np.sin(np.radians(CORNER_ANGLE))
+    return vertex[two][sharp], b[sharp]
+
+
+def _split_at_corners(mesh, facets, hats):
+    """Contact nodes: one per slave vertex, two at a corner of the slave
+    surface (one per side, each with its half of the hat function), so
+    that a weighted gap never mixes the two faces of a corner.
+
+    Returns the hat values at the Gauss points (sparse nq × m; the rows of
+    ``hats`` are facet-major) and the vertex of every contact node."""
+    fv = mesh.facets[:, facets]
+    nodes = np.unique(fv)
+    corners, second = _corner_vertices(mesh, fv)
+    coo = sp.coo_matrix(hats)
+    keep = np.isin(coo.col, nodes) & (coo.data != 0)
+    row, col, data = coo.row[keep], coo.col[keep], coo.data[keep]
+    facet = row // (hats.shape[0] // len(facets))
+    k = np.minimum(np.searchsorted(corners, col), len(corners) - 1)
+    split = (np.isin(col, corners) & (second[k] == facet) if len(corners)
+             else np.zeros(len(col), bool))
+    column = np.where(split, len(nodes) + k, np.searchsorted(nodes, col))
+    out = sp.csr_matrix((data, (row, column)), shape=(hats.shape[0], len(nodes) + len(corners)))
+    return out, np.concatenate([nodes, corners])
+
+
+def slave_points(basis, boundaries=None, collocation="nodal", model="plane_strain",
+                 intorder=None):
+    """The slave points of the named boundaries of a basis.
+
+    Parameters
+    ----------
+    basis : RKBasis or skfem vector basis
+    boundaries : str, sequence of str, facet indices, or None
+        Named boundaries (``mesh.boundaries``), facet indices, or the whole
+        boundary.
+    collocation : {"nodal", "quadrature", "gauss"}
+        ``"nodal"``: the boundary particles (Eq. 4.26-4.29).
+        ``"quadrature"``: the boundary Gauss points, with the contact law
+        applied at the boundary particles to hat-weighted averages of the
+        Gauss point gaps and slips.  ``"gauss"``: the contact law at every
+        Gauss point (over-constrains the boundary; kept for comparison).
+    model : {"plane_strain", "axisymmetric"}
+        Axisymmetric weights include ``2πR`` (forces for the full ring).
+    intorder : int, optional
+        Facet quadrature degree (``"quadrature"``); default that of the RK
+        basis (so that a uniform traction is integrated like the VCI
+        boundary terms) or twice the FEM element degree.
+
+    Returns
+    -------
+    SlavePoints
+    """
+    _check_2d(basis, model)
+    facets = _facets(basis.mesh, boundaries)
+    if len(facets) == 0:
+        raise ValueError("the slave boundary has no facets")
+    axisymmetric = model == "axisymmetric"
+    if collocation == "nodal":
+        return _nodal_points(basis, facets, axisymmetric)
+    if collocation in ("quadrature", "gauss"):
+        return _quadrature_points(basis, facets, axisymmetric, intorder,
+                                  pointwise=collocation == "gauss")
+    raise ValueError("collocation must be 'nodal', 'quadrature' or 'gauss', "
+                     f"not {collocation!r}")
+
+
+# ---------------------------------------------------------------------------

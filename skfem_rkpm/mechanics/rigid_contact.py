@@ -261,6 +261,12 @@ class RigidContact:
         K = rows.T @ sp.diags(scale) @ rows
         return touching, f, K.tocsr()
 
+    def status_changes(self):
+        """Contact nodes whose status (touching; slipping) differs between the
+        last evaluation and the last converged state."""
+        old, new = self.state, self.trial
+        return int(np.count_nonzero((old.active != new.active) | (old.slip != new.slip)))
+
     def commit(self):
         """Accept the last evaluation as the converged state (Eq. 4.11)."""
         self.state = self.trial

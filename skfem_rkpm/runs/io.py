@@ -43,15 +43,18 @@ def cell_averages(values, dx):
 def write_history(path, history, extra=None):
     """Write one CSV row per converged step.
 
-    Columns: step, load factor, iterations, final residual, cut-backs,
-    wall time, every reaction component, then ``extra`` (a list of dicts, one
+    Columns: step, load factor, Newton iterations of the converged attempt,
+    final residual, cut-backs, attempts and iterations of all attempts
+    (failed ones included), contact nodes whose status changed, wall time of
+    all attempts, every reaction component, then ``extra`` (a list of dicts, one
     per step, e.g. gauges such as the current height).
     """
     rows = []
     for k, record in enumerate(history):
         row = {"step": record.step, "t": record.t, "iterations": record.iterations,
                "residual": record.residuals[-1], "cutbacks": record.cutbacks,
-               "seconds": record.seconds}
+               "attempts": record.attempts, "all iterations": record.spent_iterations,
+               "contact changes": record.contact_changes, "seconds": record.seconds}
         for name, value in record.reactions.items():
             value = np.atleast_1d(value)
             if value.size == 1:

@@ -41,7 +41,8 @@ WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THRE
               "MPLBACKEND": "Agg"}
 
 #: History columns that describe the solver, not the final state.
-_BOOKKEEPING = ("step", "iterations", "residual", "cutbacks", "seconds")
+_BOOKKEEPING = ("step", "iterations", "residual", "cutbacks", "attempts", "all iterations",
+                "contact changes", "seconds")
 
 
 class SweepError(SceneError):

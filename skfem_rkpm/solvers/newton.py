@@ -22,6 +22,7 @@ from scipy.sparse.linalg import splu
 from ..approximation.constraints import nodal_constraint, weak_constraint
 from .constrained import solve_constrained
 from .linear import make_solver
+from .step_control import StepControl
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 
 __all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "newton_steps"]
@@ -83,7 +84,7 @@ class Prescribed:
 
 @dataclass
 class StepRecord:
-    """What one converged step did."""
+    """What one converged step did; ``seconds`` counts every attempt."""
 
     step: int
     t: float
@@ -93,6 +94,12 @@ class StepRecord:
     seconds: float
     reactions: dict = field(default_factory=dict)
     cutbacks: int = 0
+    #: Newton attempts of the step (failed ones, cut-backs and the converged one)
+    attempts: int = 1
+    #: iterations of all attempts (``iterations`` counts the converged one only)
+    spent_iterations: int = 0
+    #: contact nodes whose status (touching, slipping) the step changed
+    contact_changes: int = 0
 
 
 @dataclass
@@ -140,7 +147,7 @@ SETTLED_RESIDUAL = 100.0
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
                  contributions=(), start=0.0, on_step=None, extrapolate=True,
-                 linear_solver="auto"):
+                 linear_solver="auto", control=None):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -161,7 +168,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     max_iterations : int
         Newton iterations before a step is cut back.
     max_cutbacks : int
-        Halvings allowed per step.
+        Halvings allowed per step.  The step size is remembered and grows
+        again after easy steps (:class:`~skfem_rkpm.solvers.step_control.StepControl`).
     log : callable, optional
         Called with one line of text per iteration and per step.
     d0 : ndarray, optional
@@ -188,6 +196,12 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         ``"auto"``, ``"dense"``, ``"superlu"``, ``"pardiso"``, ``"cholmod"``
         or ``"amg"``; one instance serves the whole run, so that its
         symbolic analysis is reused while the sparsity pattern stays.
+    control : StepControl, optional
+        Step size control; default: steps up to the largest spacing of the
+        targets, down to 1e-6 of the smallest (``max_cutbacks`` halvings
+        per step stop a run first).  A contribution with
+        ``status_changes()`` reports the contact nodes whose status changed
+        in the step.
 
     Returns
     -------
@@ -203,6 +217,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     reactions_fit = _Reactions(C)
     linear_solver = make_solver(linear_solver)
     described = None
+    if control is None:
+        spacing = np.diff(np.concatenate([[0.0], targets]))
+        control = StepControl(float(spacing.max()), 1e-6 * float(spacing.min()))
 
     def g(t):
         return np.concatenate([c.R @ p.at(t, c.coordinates)
@@ -218,17 +235,19 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     step_index = int(np.sum(targets <= t_done + 1e-14))
     for target in targets[targets > t_done + 1e-14]:
         while t_done < target - 1e-14:
-            dt = target - t_done
+            clock = time.perf_counter()
+            tally = dict(attempts=0, iterations=0)
             for cut in range(max_cutbacks + 1):
+                dt = control.next(t_done, target)
                 t = t_done + dt
-                clock = time.perf_counter()
                 g_t, f_t = g(t), f_ext(t)
                 starts = ([d + dt * rate, d] if extrapolate and rate is not None else [d])
                 for guess in starts:
+                    tally["attempts"] += 1
                     try:
                         d_new, ev, lam, its, res, en = _newton(
                             problem, guess, t, C, g_t, f_t, reactions_fit, tol,
-                            max_iterations, log, contributions, linear_solver)
+                            max_iterations, log, contributions, linear_solver, tally)
                     except (NonConvergence, InvertedElementError, RuntimeError,
                             np.linalg.LinAlgError) as err:
                         log(f"step {step_index + 1}: t = {t:.6g} failed ({err})")
@@ -236,46 +255,51 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                         continue
                     break
                 else:
-                    if cut < max_cutbacks:
+                    if control.failed(dt) and cut < max_cutbacks:
                         log(f"step {step_index + 1}: cutting the step")
-                    dt /= 2.0
-                    continue
+                        continue
+                    message = (f"step {step_index + 1} to t = {target:.6g} failed after "
+                               f"{cut} cut-backs: {last_error} (last try: t = {t:.6g})")
+                    log(message)
+                    return Result(d, history, solutions, False, message)
                 break
-            else:
-                message = (f"step {step_index + 1} to t = {target:.6g} failed after "
-                           f"{max_cutbacks} cut-backs: {last_error}")
-                log(message)
-                return Result(d, history, solutions, False, message)
             problem.commit(ev)
             if linear_solver.describe() != described:
                 described = linear_solver.describe()
                 log(f"linear solver: {described}")
             reactions = _reactions(prescribed, groups, lam)
+            changes = sum(c.status_changes() for c in contributions
+                          if hasattr(c, "status_changes"))
             for contribution in contributions:
                 contribution.commit()
                 reactions.update(contribution.resultants())
+            control.converged(dt, its, changes, cut=cut > 0)
             rate = (d_new - d) / (t - t_done)
             d, t_done = d_new, t
             step_index += 1
             record = StepRecord(step_index, t, its, res, en,
-                                time.perf_counter() - clock, reactions, cut)
+                                time.perf_counter() - clock, reactions, cut,
+                                tally["attempts"], tally["iterations"], changes)
             history.append(record)
             solutions.append(d.copy())
             if on_step is not None:
                 on_step(record, d, ev)
             log(f"step {step_index}: t = {t:.6g} converged in {its} iterations "
-                f"(residual {res[-1]:.2e}, {record.seconds:.3f} s)")
+                f"(residual {res[-1]:.2e}, {record.seconds:.3f} s; next step "
+                f"{control.size:.3g})")
     return Result(d, history, solutions, True, "completed")
 
 
 def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
-            contributions=(), linear_solver="auto"):
+            contributions=(), linear_solver="auto", tally=None):
     """Newton iterations of one step; returns the converged data or raises.
 
     Once the prescribed values are met, each update ``δ`` is scaled by the
     energy line search of :func:`_line_search`; near the solution the full
-    step is taken and convergence stays quadratic.
+    step is taken and convergence stays quadratic.  ``tally["iterations"]``
+    counts the iterations, also those of an attempt that fails.
     """
+    tally = {"iterations": 0} if tally is None else tally
 
     def state(d):
         ev = problem.evaluate(d)
@@ -302,6 +326,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     residuals, energies = [current[3]], []
     first_energy = None
     for it in range(1, max_iterations + 1):
+        tally["iterations"] += 1
         gap = g - C @ d
         delta = _update(current[1], current[2], C, gap, linear_solver, contributions)
         energy = abs(delta @ current[2])

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DEFAULT_PENALTY_FACTOR", "DEFAULT_TANGENTIAL_FACTOR", "default_penalty", "STICK_FRICTION",
-           "friction_coefficient", "coulomb", "ContactState"]
+__all__ = ["DEFAULT_PENALTY_FACTOR", "DEFAULT_TANGENTIAL_FACTOR", "DEFAULT_AUGMENTED_TOLERANCE",
+           "default_penalty", "STICK_FRICTION", "friction_coefficient", "coulomb",
+           "ContactState"]
 
 #: ω_n = DEFAULT_PENALTY_FACTOR · E / h_c per unit area of the contact
 #: boundary (h_c the particle spacing along it).  A contact pressure p then
@@ -36,9 +37,9 @@ DEFAULT_PENALTY_FACTOR = 1e3
 #: reversed slip (measured: ω_t = ω_n needs cut-backs, docs/contact.md).
 DEFAULT_TANGENTIAL_FACTOR = 1.0
 
-
-# penalty Coulomb friction
-# ---------------------------------------------------------------------------
+#: the augmented Lagrangian stops when pressed nodes penetrate, and sticking
+#: nodes slip, less than this fraction of the particle spacing h_c
+DEFAULT_AUGMENTED_TOLERANCE = 1e-6
 
 
 def default_penalty(E, spacing, factor=DEFAULT_PENALTY_FACTOR):
@@ -59,8 +60,11 @@ def default_penalty(E, spacing, factor=DEFAULT_PENALTY_FACTOR):
 STICK_FRICTION = 10.0
 
 
-def friction_coefficient(friction):
+def friction_coefficient(friction, exact_stick=False):
     """``μ`` of ``friction``: a number ``≥ 0``, or ``"stick"``.
+
+    With ``exact_stick`` (the augmented Lagrangian) ``"stick"`` is ``μ = ∞``.
+    With the penalty law it is ``μ = STICK_FRICTION``, for this reason:
 
     Sticking means no slip wherever the tool presses, the limit ``μ → ∞``
     of Eq. (4.6).  The limit itself is discontinuous where a node leaves
@@ -79,7 +83,7 @@ def friction_coefficient(friction):
     """
     if isinstance(friction, str):
         if friction == "stick":
-            return STICK_FRICTION
+            return np.inf if exact_stick else STICK_FRICTION
         raise ValueError(f'friction must be a number >= 0 or "stick", not {friction!r}')
     mu = float(friction)
     if not (np.isfinite(mu) and mu >= 0):
@@ -97,7 +101,7 @@ def coulomb(pressure, trial, mu):
     trial : ndarray
         Trial tangential traction ``t_t,n - ω_t Δg_t``.
     mu : float
-        Friction coefficient (0: frictionless).
+        Friction coefficient (0: frictionless, ``inf``: stick).
 
     Returns
     -------
@@ -108,6 +112,8 @@ def coulomb(pressure, trial, mu):
     """
     if mu == 0.0:
         return np.zeros_like(trial), pressure > 0
+    if mu == np.inf:
+        return trial.copy(), np.zeros(trial.shape, bool)
     slip = np.abs(trial) > mu * pressure
     return np.where(slip, mu * pressure * np.sign(trial), trial), slip
 

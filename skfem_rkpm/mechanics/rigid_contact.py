@@ -13,7 +13,8 @@ tangential traction starts from zero, also when it sticks.
 import numpy as np
 import scipy.sparse as sp
 
-from .friction import (DEFAULT_PENALTY_FACTOR, DEFAULT_TANGENTIAL_FACTOR, ContactState,
+from .friction import (DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR,
+                       DEFAULT_TANGENTIAL_FACTOR, ContactState,
                        _positive, coulomb, default_penalty, friction_coefficient)
 from .problem import NonFiniteError
 from .slave_points import slave_points
@@ -80,8 +81,9 @@ def _rigid_tangent(pts, proj, Bn, slipped, law, omega_n, omega_t, mu):
         stick = omega_t * (active & ~slip) * inv_W
         K = K + Bt.T @ M.T @ (sp.diags(stick * phi) @ M @ sp.diags(a) @ Bt
                               + sp.diags(stick * slip_t * dphi) @ M @ Bn)
-        sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
-        K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
+        if np.isfinite(mu):  # μ = ∞ (exact stick) never slips
+            sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
+            K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
     p, s = pts.hats @ pressure, pts.hats @ shear
     blocks = w[:, None, None] * _curvature_blocks(proj, p, s)
     return (K + G.T @ _block_diagonal(blocks) @ G).tocsr()
@@ -164,15 +166,29 @@ class RigidContact:
         Factors of the default penalties.
     intorder : int, optional
         Facet quadrature degree for ``collocation="quadrature"``.
+    enforcement : {"penalty", "augmented"}
+        The paper's penalty law, or the augmented Lagrangian: the penalty law
+        around multipliers that :meth:`augment` updates after each converged
+        Newton solve (Uzawa), until the penetration of the pressed nodes is
+        below ``tolerance · h_c`` and the sticking nodes slip less than
+        that; ``friction="stick"`` is then ``μ = ∞``.
+    tolerance : float
+        Penetration and stick slip allowed by the augmented Lagrangian, as a
+        fraction of the particle spacing ``h_c`` along the contact boundary.
     """
 
     def __init__(self, problem, tool, slaves=None, friction=0.0, collocation="nodal",
                  penalty=None, tangential_penalty=None, factor=DEFAULT_PENALTY_FACTOR,
-                 tangential_factor=DEFAULT_TANGENTIAL_FACTOR, intorder=None):
+                 tangential_factor=DEFAULT_TANGENTIAL_FACTOR, intorder=None,
+                 enforcement="penalty", tolerance=DEFAULT_AUGMENTED_TOLERANCE):
         if not isinstance(tool, Tool):
             raise TypeError(f"tool must be a Tool (Platen, Polyline, Arc), not {tool!r}")
+        if enforcement not in ("penalty", "augmented"):
+            raise ValueError(f"enforcement must be 'penalty' or 'augmented', not "
+                             f"{enforcement!r}")
         self.problem, self.tool, self.name = problem, tool, tool.name
-        self.mu = friction_coefficient(friction)
+        self.enforcement = enforcement
+        self.mu = friction_coefficient(friction, exact_stick=enforcement == "augmented")
         self.collocation = collocation
         self.points = slave_points(problem.basis, slaves, collocation, problem.model,
                                    intorder)
@@ -182,7 +198,9 @@ class RigidContact:
                                         tangential_factor)
                         if tangential_penalty is None
                         else _positive(tangential_penalty, "tangential penalty"))
+        self.tolerance = _positive(tolerance, "augmented Lagrangian tolerance")
         self.state = self.trial = self._initial_state()
+        self.restart()
         _warn_if_out_of_reach(tool, self.points.X)
 
     def _initial_state(self):
@@ -198,14 +216,18 @@ class RigidContact:
         slip ``Δĝ_t`` (the particle's own, or hat-weighted averages of the
         Gauss point values ``g_n`` and ``Δg_t = Δξ·t``):
         ``t_n = ω_n ⟨-ĝ⟩``, the trial ``t_t,n - ω_t φ Δĝ_t`` with the part
-        ``φ`` of the step spent in contact, and Coulomb's return map."""
+        ``φ`` of the step spent in contact, and Coulomb's return map.  The
+        augmented Lagrangian takes ``t_n = ⟨λ_n - ω_n ĝ⟩`` and ``λ_t`` for
+        ``t_t,n`` (:meth:`augment`)."""
         pts, state = self.points, self.state
         node_gap = pts.average(proj.gap)
-        active = node_gap <= 0.0
-        pressure = self.omega_n * np.maximum(-node_gap, 0.0)
+        pressed = node_gap - self.multipliers[0] / self.omega_n  # Eq. 4.5 around λ_n
+        active = pressed <= 0.0
+        pressure = self.omega_n * np.maximum(-pressed, 0.0)
         slip_t = pts.average(np.einsum("ni,ni->n", slipped, proj.tangent.T))
         phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
-        shear, slip = coulomb(pressure, state.shear - self.omega_t * phi * slip_t, self.mu)
+        shear, slip = coulomb(pressure, self.multipliers[1] - self.omega_t * phi * slip_t,
+                              self.mu)
         law = (pressure, np.where(active, shear, 0.0), slip & active, active, slip_t, phi,
                dphi)
         return node_gap, law
@@ -252,12 +274,12 @@ class RigidContact:
             return None
         pts = self.points
         rows = (pts.weighted_hats @ self._normal_rows) / pts.node_weights[:, None]
-        predicted = self.trial.node_gap + rows @ delta
-        touching = apart & (predicted < 0.0)
+        pressed = self.trial.node_gap - self.multipliers[0] / self.omega_n
+        touching = apart & (pressed + rows @ delta < 0.0)
         if not touching.any():
             return None
         scale = self.omega_n * pts.node_weights * touching
-        f = rows.T @ (scale * self.trial.node_gap)
+        f = rows.T @ (scale * pressed)
         K = rows.T @ sp.diags(scale) @ rows
         return touching, f, K.tocsr()
 
@@ -267,9 +289,45 @@ class RigidContact:
         old, new = self.state, self.trial
         return int(np.count_nonzero((old.active != new.active) | (old.slip != new.slip)))
 
+    def restart(self):
+        """Multipliers ``(λ_n, λ_t)`` of the step from the converged state:
+        ``λ_t = t_t,n`` (Eq. 4.6); ``λ_n = t_n`` for the augmented Lagrangian
+        (a warm start), 0 for the penalty law.  Forgets the augmentations of
+        an attempt that failed."""
+        state = self.state
+        normal = state.pressure if self.enforcement == "augmented" else 0.0 * state.pressure
+        self.multipliers = (normal.copy(), state.shear.copy())
+
+    def violation(self):
+        """Largest penetration of a pressed node, and slip of a sticking node
+        since the last converged step, at the last evaluation, over
+        ``tolerance · h_c`` (the augmented Lagrangian has converged when ≤ 1)."""
+        trial = self.trial
+        penetration = np.maximum(-trial.node_gap, 0.0)[trial.active].max(initial=0.0)
+        slip = 0.0
+        if self.mu > 0:
+            sticking = trial.active & ~trial.slip
+            moved = (trial.relative - self.state.relative).T
+            slip_t = self.points.average(np.einsum("ni,ni->n", moved, trial.tangent.T))
+            slip = np.abs(slip_t)[sticking].max(initial=0.0)
+        return max(penetration, slip) / (self.tolerance * self.points.spacing)
+
+    def augment(self):
+        """One Uzawa update of the augmented Lagrangian after a converged
+        Newton solve: the multipliers take the tractions found, ``λ_n = t_n``
+        and ``λ_t = t_t`` (return-mapped), while gaps and slips still count
+        from the last converged step, so that sticking nodes end the step
+        where they started on the tool.  Returns False (and changes nothing)
+        for the penalty law or when :meth:`violation` ≤ 1."""
+        if self.enforcement != "augmented" or self.violation() <= 1.0:
+            return False
+        self.multipliers = (self.trial.pressure.copy(), self.trial.shear.copy())
+        return True
+
     def commit(self):
         """Accept the last evaluation as the converged state (Eq. 4.11)."""
         self.state = self.trial
+        self.restart()
 
     def resultants(self):
         """``{tool name: (Fx, Fy)}``, the force of the tool on the body."""
@@ -294,5 +352,6 @@ class RigidContact:
         if state.gap.shape != (self.points.n,) or state.shear.shape != (self.points.m,):
             raise ValueError("the state belongs to a contact with different slave points")
         self.state = self.trial = state
+        self.restart()
 
 

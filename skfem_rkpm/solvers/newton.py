@@ -147,7 +147,7 @@ SETTLED_RESIDUAL = 100.0
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
                  contributions=(), start=0.0, on_step=None, extrapolate=True,
-                 linear_solver="auto", control=None):
+                 linear_solver="auto", control=None, max_augmentations=30):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -196,6 +196,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         ``"auto"``, ``"dense"``, ``"superlu"``, ``"pardiso"``, ``"cholmod"``
         or ``"amg"``; one instance serves the whole run, so that its
         symbolic analysis is reused while the sparsity pattern stays.
+    max_augmentations : int
+        Multiplier updates of augmented-Lagrangian contributions (contact
+        with ``augment()``) per step before the attempt counts as failed.
     control : StepControl, optional
         Step size control; default: steps up to the largest spacing of the
         targets, down to 1e-6 of the smallest (``max_cutbacks`` halvings
@@ -245,9 +248,10 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 for guess in starts:
                     tally["attempts"] += 1
                     try:
-                        d_new, ev, lam, its, res, en = _newton(
+                        d_new, ev, lam, its, res, en = _augmented_newton(
                             problem, guess, t, C, g_t, f_t, reactions_fit, tol,
-                            max_iterations, log, contributions, linear_solver, tally)
+                            max_iterations, log, contributions, linear_solver, tally,
+                            max_augmentations)
                     except (NonConvergence, InvertedElementError, RuntimeError,
                             np.linalg.LinAlgError) as err:
                         log(f"step {step_index + 1}: t = {t:.6g} failed ({err})")
@@ -288,6 +292,30 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 f"(residual {res[-1]:.2e}, {record.seconds:.3f} s; next step "
                 f"{control.size:.3g})")
     return Result(d, history, solutions, True, "completed")
+
+
+def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
+                      contributions, linear_solver, tally, max_augmentations):
+    """Newton solves of one step, each followed by an update of the
+    multipliers of the contributions with ``augment()`` (Uzawa), until none
+    needs one; ``iterations`` and the residual history count all solves."""
+    for c in contributions:
+        if hasattr(c, "restart"):
+            c.restart()
+    augmenting = [c for c in contributions if hasattr(c, "augment")]
+    its = 0
+    residuals, energies = [], []
+    for update in range(max_augmentations + 1):
+        d, ev, lam, k, res, en = _newton(problem, d, t, C, g, f_ext, fit, tol,
+                                         max_iterations, log, contributions,
+                                         linear_solver, tally)
+        its, residuals, energies = its + k, residuals + res, energies + en
+        worst = max((c.violation() for c in augmenting), default=0.0)
+        if not any([c.augment() for c in augmenting]):
+            return d, ev, lam, its, residuals, energies
+        log(f"    augmentation {update + 1}: violation {worst:.3g} x tolerance")
+    raise NonConvergence(f"the augmented Lagrangian needs more than {max_augmentations} "
+                         f"multiplier updates")
 
 
 def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,

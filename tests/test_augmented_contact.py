@@ -175,3 +175,19 @@ def test_stick_is_exact_with_the_augmented_lagrangian(kind):
     assert pressed.sum() >= 3
     # each of the 4 drag steps may leave 1e-9 h of slip (the tolerance)
     assert np.abs(slip[pressed]).max() < 4 * 1e-9 * platen.points.spacing
+
+
+def test_scene_keys_choose_the_enforcement():
+    from skfem_rkpm.runs.build import tool_from_scene
+
+    problem = problem_on("fem", rectangle(1.0, 1.0, 2, 2))
+    section = {"kind": "platen", "point": [0, 1], "normal": [0, -1], "friction": "stick",
+               "slaves": ["top"], "enforcement": "augmented", "penalty_factor": 10.0,
+               "tolerance": 1e-8}
+    contact = tool_from_scene("platen", section, problem.basis, problem)
+    assert contact.enforcement == "augmented" and contact.mu == np.inf
+    assert contact.omega_n == pytest.approx(10.0 * E / contact.points.spacing)
+    assert contact.tolerance == 1e-8
+    penalty = tool_from_scene("platen", {**section, "enforcement": "penalty"},
+                              problem.basis, problem)
+    assert penalty.mu == 10.0  # the penalty law's stand-in for stick

@@ -34,13 +34,23 @@ def test_a_failure_halves_and_the_size_is_remembered():
     (2, 3, 0.02),            # the contact status of 3 > 2 nodes changed: keep
 ])
 def test_growth_follows_the_iterations(iterations, changes, size):
-    control = StepControl(max_step=0.1, min_step=1e-3, size=0.02)
+    control = StepControl(max_step=0.1, min_step=1e-3, size=0.02, patience=1)
     control.converged(0.02, iterations, changes)
     assert control.size == pytest.approx(size)
 
 
+def test_growth_waits_for_steps_without_cut_backs():
+    control = StepControl(max_step=0.1, min_step=1e-3, size=0.02, patience=3)
+    control.converged(0.02, 1, cut=True)
+    control.converged(0.02, 1)
+    control.converged(0.02, 1)
+    assert control.size == 0.02
+    control.converged(0.02, 1)  # the third step in a row without a cut-back
+    assert control.size == 0.04
+
+
 def test_growth_stops_at_the_largest_step():
-    control = StepControl(max_step=0.1, min_step=1e-3, size=0.08)
+    control = StepControl(max_step=0.1, min_step=1e-3, size=0.08, patience=1)
     control.converged(0.08, 1)
     assert control.size == 0.1
 
@@ -62,10 +72,13 @@ def test_history_counts_every_attempt():
     # two starts (extrapolated, plain) exist only from the second step on
     assert first.attempts == first.cutbacks + 1
     assert first.spent_iterations == 4 * first.cutbacks + first.iterations
-    # measured: cut twice to 0.125; then three steps of that size without a
-    # failure up to the target 0.5, after which the size grows to 0.25
+    # measured: cut twice to 0.125; then steps of that size without a
+    # failure up to the target 0.5 (three in a row, the patience), after
+    # which the size grows by sqrt(6 / 3) to 0.177: three equal steps of 1/6
+    # to the target 1
     t = np.array([r.t for r in result.history])
     dt = np.diff(np.concatenate([[0.0], t]))
     assert first.t == 0.125 and np.allclose(dt[:4], 0.125)
     assert all(r.attempts == 1 for r in result.history[1:4])
-    assert dt[4] == 0.25 and t[-1] == 1.0
+    np.testing.assert_allclose(dt[4:], 1 / 6)
+    assert t[-1] == 1.0

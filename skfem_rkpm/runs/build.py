@@ -15,6 +15,7 @@ from skfem.helpers import dot
 from ..approximation.basis import RKBasis
 from ..assembly import facet_basis
 from ..mechanics.problem import SolidProblem
+from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR
 from ..mechanics.rigid_contact import RigidContact
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
@@ -120,7 +121,8 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     ``kind`` is ``"platen"`` (``point``, ``normal``), ``"polyline"``
     (``points``, ``fillet``) or ``"arc"`` (``center``, ``radius``,
     ``angles`` in degrees); ``motion``, ``friction``, ``slaves``,
-    ``penalty`` and ``collocation`` as in :class:`RigidContact`.
+    ``penalty``, ``penalty_factor`` (``factor``), ``collocation``,
+    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.
     """
     kind = section.get("kind", "platen")
     motion = section.get("motion") or (0.0, 0.0)
@@ -135,6 +137,10 @@ def tool_from_scene(name, section, basis, problem, scene=None):
         raise ValueError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
     if problem.basis is not basis:
         raise ValueError("the basis must be the problem's basis")
+    factor = section.get("penalty_factor")
     return RigidContact(problem, tool, section.get("slaves"),
                         section.get("friction", 0.0),
-                        section.get("collocation") or "nodal", section.get("penalty"))
+                        section.get("collocation") or "nodal", section.get("penalty"),
+                        factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
+                        enforcement=section.get("enforcement") or "penalty",
+                        tolerance=section.get("tolerance") or DEFAULT_AUGMENTED_TOLERANCE)

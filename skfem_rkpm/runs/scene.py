@@ -211,6 +211,15 @@ SCHEMA = {
         "collocation": Key("str", "nodal", choices=("nodal", "quadrature"),
                            doc="contact at the boundary particles (paper) or at boundary "
                                "quadrature points"),
+        "enforcement": Key("str", "penalty", choices=("penalty", "augmented"),
+                           doc="the paper's penalty law, or the augmented Lagrangian "
+                               "(penetration and stick slip to `tolerance`; stick = μ ∞)"),
+        "penalty_factor": Key("float", check=_positive,
+                              doc="normal penalty as factor · E / spacing (default 1000); "
+                                  "ignored when `penalty` is given"),
+        "tolerance": Key("float", 1e-6, check=_positive,
+                         doc="augmented: penetration and stick slip allowed, as a fraction "
+                             "of the particle spacing"),
     },
     "boundary.*": {
         "fix": Key("list[str]", doc='components held at 0 on this boundary, e.g. ["y"] for '

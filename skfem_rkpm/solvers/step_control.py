@@ -3,8 +3,9 @@
 A failed attempt halves the size of the load step.  After a converged step
 the size grows with the Newton iterations ``n`` it took (Crisfield's rule):
 by ``sqrt(n_target / n)``, at most by ``growth``, never beyond ``max_step``
-and never after a step that needed a cut-back.  Steps that take more than
-``n_target`` iterations do not shrink the next one: only a failure does.  The size is
+and only after ``patience`` steps in a row converged without a cut-back.
+Steps that take more than ``n_target`` iterations do not shrink the next
+one: only a failure does.  The size is
 remembered from step to step, so that a run that needed small steps at a
 hard stage does not try the full step (and fail) again at every step after
 it.  While the contact status of more than ``max_changes`` nodes changes in
@@ -38,6 +39,8 @@ class StepControl:
         Largest factor between two consecutive step sizes.
     max_changes : int
         A step that changes the contact status of more nodes does not grow.
+    patience : int
+        Steps in a row without a cut-back before the size grows again.
     """
 
     max_step: float
@@ -45,7 +48,9 @@ class StepControl:
     target_iterations: int = 6
     growth: float = 2.0
     max_changes: int = 2
+    patience: int = 3
     size: float = None
+    streak: int = 0
 
     def __post_init__(self):
         if not 0 < self.min_step <= self.max_step:
@@ -68,9 +73,10 @@ class StepControl:
 
     def converged(self, dt, iterations, changes=0, cut=False):
         """Adapt after a converged step of size ``dt`` (``cut``: it needed a cut-back)."""
+        self.streak = 0 if cut else self.streak + 1
         factor = np.sqrt(self.target_iterations / max(iterations, 1))
         factor = min(max(factor, 1.0), self.growth)
-        if cut or changes > self.max_changes:
+        if self.streak < self.patience or changes > self.max_changes:
             factor = 1.0
         # a step shortened to land on a target leaves the size as it was
         self.size = min(max(dt, self.size) * factor, self.max_step)

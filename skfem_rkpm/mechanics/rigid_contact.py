@@ -300,7 +300,7 @@ class RigidContact:
 
     def violation(self):
         """Largest penetration of a pressed node, and slip of a sticking node
-        since the last converged step, at the last evaluation, over
+        since the last converged step (or since it touched), at the last evaluation, over
         ``tolerance · h_c`` (the augmented Lagrangian has converged when ≤ 1)."""
         trial = self.trial
         penetration = np.maximum(-trial.node_gap, 0.0)[trial.active].max(initial=0.0)
@@ -309,7 +309,8 @@ class RigidContact:
             sticking = trial.active & ~trial.slip
             moved = (trial.relative - self.state.relative).T
             slip_t = self.points.average(np.einsum("ni,ni->n", moved, trial.tangent.T))
-            slip = np.abs(slip_t)[sticking].max(initial=0.0)
+            phi, _ = _touch_fraction(trial.node_gap, self.state.node_gap, self.state.active)
+            slip = np.abs(phi * slip_t)[sticking].max(initial=0.0)
         return max(penetration, slip) / (self.tolerance * self.points.spacing)
 
     def augment(self):

@@ -1,0 +1,117 @@
+"""Whole-run cost of the paper's contact scenes with penalty and augmented contact.
+
+Every case runs ``skfem-rkpm run SCENE --set ...`` in a fresh process and
+reports the CPU time of that whole process (user + system of the child,
+from ``getrusage``:
+imports, mesh, basis, every Newton attempt, output), the load steps, the
+Newton iterations of the converged attempts and of all attempts (failed ones
+and cut-backs included), the penetration at the end and the scene's result
+(punch force, inner-diameter change of the ring).  ``--repeat N`` runs each
+case N times and reports the median CPU time.
+
+Run:  python benchmarks/contact_scenes.py                  (~10 minutes, one core)
+      python benchmarks/contact_scenes.py --cases ring      (the ring cases only)
+      python benchmarks/contact_scenes.py --repeat 3
+"""
+
+import argparse
+import csv
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+
+def augmented(*tools, factor=10):
+    return [s for tool in tools for s in (f'tools.{tool}.enforcement="augmented"',
+                                          f"tools.{tool}.penalty_factor={factor}")]
+
+
+CASES = {
+    # name: (scene, method, settings)
+    "ring mu=0.15 rkpm penalty": ("ring", "rkpm", []),
+    "ring mu=0.15 rkpm augmented": ("ring", "rkpm", augmented("platen")),
+    "ring mu=0.15 fem penalty": ("ring", "fem", []),
+    "ring mu=0.15 fem augmented": ("ring", "fem", augmented("platen")),
+    "ring stick rkpm penalty": ("ring", "rkpm", ['tools.platen.friction="stick"']),
+    "ring stick fem penalty": ("ring", "fem", ['tools.platen.friction="stick"']),
+    "punch rkpm penalty": ("punch", "rkpm", []),
+    "punch rkpm augmented": ("punch", "rkpm", augmented("punch", "die")),
+    "punch fem augmented": ("punch", "fem", augmented("punch", "die")),
+    "hemisphere mu=0 rkpm augmented": ("hemisphere", "rkpm", augmented("punch", "die")),
+    "hemisphere mu=0.3 rkpm augmented": ("hemisphere", "rkpm",
+                                         ["tools.punch.friction=0.3"]
+                                         + augmented("punch", "die")),
+    "hemisphere mu=0 fem augmented": ("hemisphere", "fem", augmented("punch", "die")),
+    "hemisphere mu=0.3 fem augmented": ("hemisphere", "fem",
+                                        ["tools.punch.friction=0.3"]
+                                        + augmented("punch", "die")),
+}
+
+
+def run_case(scene, method, settings, folder, limit):
+    """CPU seconds of one whole ``skfem-rkpm run`` and its exit status."""
+    command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", scene, "--quiet",
+               "--method", method, "--out", str(folder),
+               "--set", "output.fields=false", "--set", "output.figures=false"]
+    for setting in settings:
+        command += ["--set", setting]
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run(command, env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.DEVNULL, timeout=limit)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    seconds = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return seconds, done.returncode
+
+
+def summary(folder):
+    rows = list(csv.DictReader(open(Path(folder) / "history.csv")))
+    last = rows[-1]
+    out = {"t": float(last["t"]), "steps": len(rows),
+           "iterations": sum(int(r["iterations"]) for r in rows),
+           "all iterations": sum(int(r["all iterations"]) for r in rows),
+           "cut-backs": sum(int(r["cutbacks"]) for r in rows)}
+    out["penetration"] = max(float(v) for k, v in last.items() if k.endswith("penetration"))
+    if "inner_mid x" in last:
+        out["result"] = f"ID {100 * float(last['inner_mid x']) / 30.0 - 100:+.2f} %"
+    elif "reaction punch y" in last:
+        out["result"] = f"F {-float(last['reaction punch y']) / 1e3:.2f} kN"
+    return out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="*", default=[],
+                        help="run only cases whose name contains one of these words")
+    parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--limit", type=float, default=1800.0,
+                        help="seconds after which a run is stopped")
+    args = parser.parse_args()
+    names = [n for n in CASES if not args.cases or any(w in n for w in args.cases)]
+    print(f"load average at start: {os.getloadavg()[0]:.1f}")
+    print("| case | status | t | steps | iterations/step | all iterations | cut-backs "
+          "| penetration (mm) | result | CPU s (median) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in names:
+        scene, method, settings = CASES[name]
+        times = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for k in range(args.repeat):
+                seconds, code = run_case(scene, method, settings, Path(tmp) / f"r{k}",
+                                         args.limit)
+                times.append(seconds)
+            s = summary(Path(tmp) / "r0")
+        status = "completed" if code == 0 else f"stopped ({code})"
+        print(f"| {name} | {status} | {s['t']:.3f} | {s['steps']} | "
+              f"{s['iterations'] / s['steps']:.2f} | {s['all iterations']} | "
+              f"{s['cut-backs']} | {s['penetration']:.1e} | {s.get('result', '')} | "
+              f"{statistics.median(times):.1f} |", flush=True)
+    print(f"load average at end: {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -191,3 +191,31 @@ def test_scene_keys_choose_the_enforcement():
     penalty = tool_from_scene("platen", {**section, "enforcement": "penalty"},
                               problem.basis, problem)
     assert penalty.mu == 10.0  # the penalty law's stand-in for stick
+
+
+@pytest.mark.parametrize("enforcement, factor, rtol", [("penalty", 1e3, 2e-5),
+                                                       ("augmented", 10.0, 1e-6)])
+def test_quadratic_elements_collocate_at_all_their_facet_nodes(enforcement, factor, rtol):
+    """Q2: nodal collocation at the vertices and mid-side nodes of the
+    facets, weighted by ∫N_K 2πR dR (1/6 and 2/3 of a facet, the axis node
+    none): the consistent nodal forces of a uniform pressure, so the
+    homogeneous compression is exact up to the penetration (penalty:
+    p h / (1000 E) of the height; augmented: 1e-6 of the node spacing)."""
+    from skfem import ElementQuad2
+
+    mesh = rectangle(1.0, 1.0, 3, 3)
+    basis = Basis(mesh, ElementVector(ElementQuad2()), intorder=4)
+    problem = SolidProblem(basis, J2Material(E, NU, LAW), "axisymmetric")
+    kw = dict(enforcement=enforcement, factor=factor)
+    bottom = RigidContact(problem, Platen((0, 0), (0, 1), name="bottom"), "bottom", **kw)
+    top = RigidContact(problem, Platen((0, 1), (0, -1), motion=(0, -0.3), name="top"),
+                       "top", **kw)
+    assert top.points.n == 6  # 7 facet nodes, the one on the axis has no area
+    assert top.points.spacing == pytest.approx(1 / 6)
+    np.testing.assert_allclose(top.points.weights.sum(), np.pi)  # ∫ 2πR dR over [0, 1]
+    result = newton_steps(problem, [Prescribed("left", 0, 0.0)], steps=6, tol=1e-10,
+                          contributions=[bottom, top])
+    assert result.completed, result.message
+    force = np.pi * uniaxial_compression(0.3, E, NU, LAW).nominal
+    # measured: 1.0e-5 (penalty), 2.0e-7 (augmented)
+    assert result.history[-1].reactions["top"][1] == pytest.approx(force, rel=rtol)

@@ -188,10 +188,45 @@ def _interleaved(nodes):
     return (2 * np.asarray(nodes)[:, None] + np.arange(2)[None]).ravel()
 
 
+def _element_nodal_points(basis, facets, axisymmetric):
+    """The nodes of a higher-order FEM basis (Q2, T6, ...) on the facets, with
+    the weights ``w_K = ∫_Γ N_K dΓ`` of the element's own facet shape
+    functions (for quadratic facets 1/6 and 2/3 of the facet: all positive)
+    and ``G`` the rows of their dofs; the spacing is that of the nodes."""
+    from skfem import FacetBasis
+
+    mesh = basis.mesh
+    scalar = basis.elem.elem if hasattr(basis.elem, "elem") else basis.elem
+    fb = FacetBasis(mesh, scalar, facets=facets, intorder=2 * scalar.maxdeg + 1)
+    x = np.asarray(fb.global_coordinates()).reshape(2, -1)
+    w = np.asarray(fb.dx).ravel()
+    if axisymmetric:
+        w = _TWO_PI * x[0] * w
+    values = _scalar_value_matrix(fb)
+    nodes = np.unique(fb.element_dofs[:, :])
+    nodes = nodes[np.asarray(abs(values[:, nodes]).sum(axis=0)).ravel() > 0]
+    weights = np.asarray(values.T @ w).ravel()[nodes]
+    if np.any(weights < -1e-12 * weights.max()):
+        raise ValueError(f"nodal collocation needs nodal weights ∫N_K dΓ ≥ 0; the "
+                         f"{type(scalar).__name__} facets have {np.sum(weights < 0)} "
+                         f"negative ones: use collocation='quadrature'")
+    # a node on the axis of an axisymmetric model carries no area (∫N_K 2πR dR
+    # vanishes there for quadratic facets): it has no contact law
+    keep = weights > 1e-12 * weights.max()
+    nodes, weights = nodes[keep], weights[keep]
+    per_facet = len(nodes) / max(len(facets), 1)  # ~ nodes per facet beyond the first
+    G = sp.identity(basis.N, format="csr")[_interleaved(nodes)]
+    return SlavePoints(basis.doflocs[:, 2 * nodes], weights, G,
+                       _facet_spacing(mesh, facets) / max(per_facet, 1.0),
+                       sp.identity(len(nodes), format="csr"), weights, nodes)
+
+
 def _nodal_points(basis, facets, axisymmetric):
     """Boundary particles with hat-function weights ``w_K = ∫_Γ N_K dΓ`` and
     ``G`` = the rows of ``Λᵀ`` (Eq. 3.33) of their nodal values."""
     mesh = basis.mesh
+    if not _is_rk(basis) and basis.N != 2 * mesh.nvertices:
+        return _element_nodal_points(basis, facets, axisymmetric)
     _vertex_dof_check(basis)
     _, w, hats = _boundary_quadrature(mesh, facets, 2, axisymmetric)
     nodes = np.unique(mesh.facets[:, facets])

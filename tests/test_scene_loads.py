@@ -305,3 +305,100 @@ def test_history_ramp_and_table():
     assert [held(t) for t in (0.25, 0.5, 0.9)] == [1.5, 3.0, 3.0]
     with pytest.raises(ValueError, match="must increase"):
         History([[0.5, 1.0], [0.5, 2.0]])
+
+
+HYDROSTATIC = """
+[geometry]
+x = [0.0, 1.0]
+y = [0.0, 1.0]
+divisions = [3, 3]
+
+[material]
+E = 1000.0
+nu = 0.3
+
+[boundary.left]
+fix = ["x"]
+method = "{method}"
+
+[boundary.bottom]
+fix = ["y"]
+method = "{method}"
+
+[boundary.top]
+pressure = 100.0
+follower = {follower}
+
+[boundary.right]
+pressure = 100.0
+follower = {follower}
+
+[steps]
+count = 4
+tolerance = 1e-10
+
+[output]
+points = {{ corner = [1.0, 1.0] }}
+"""
+
+
+def plane_strain_biaxial_stretch(p, follower, E=1000.0, nu=0.3):
+    """In-plane stretch λ of a block under the pressure p on all its sides
+    (plane strain, F = diag(λ, λ, 1)): log strains (ln λ, ln λ, 0) give
+    τ₁₁ = (2K + 2G/3) ln λ; a follower pressure is a Cauchy stress
+    σ₁₁ = τ₁₁/λ² = -p, a dead one a nominal stress P₁₁ = τ₁₁/λ = -p."""
+    from scipy.optimize import brentq
+
+    K, G = E / (3 * (1 - 2 * nu)), E / (2 * (1 + nu))
+    power = 2 if follower else 1
+    return brentq(lambda lam: (2 * K + 2 * G / 3) * np.log(lam) / lam**power + p, 0.5, 1.0,
+                  xtol=1e-15)
+
+
+@pytest.mark.parametrize("follower", [True, False])
+@pytest.mark.parametrize("method", ["rkpm", "fem"])
+def test_follower_and_dead_pressure_on_a_block_are_exact(follower, method):
+    """Pressure 0.1 E on the top and right of a quarter-symmetric block:
+    the homogeneous stretch of the closed form to 1e-9, and the left
+    support carries p times the current (follower) or the reference (dead)
+    length.  The two differ by 5 %."""
+    how = "weak" if method == "rkpm" else "nodal"
+    scene = HYDROSTATIC.format(method=how, follower=str(follower).lower())
+    result = run(build(parse_scene(scene), method), progress=False)
+    assert result.completed, result.message
+    for record, gauges in zip(result.history, result.gauges):
+        lam = plane_strain_biaxial_stretch(100.0 * record.t, follower)
+        assert gauges["corner x"] == pytest.approx(lam, rel=1e-9)
+        assert gauges["corner y"] == pytest.approx(lam, rel=1e-9)
+        length = lam if follower else 1.0
+        assert record.reactions["left[0]"] == pytest.approx(100.0 * record.t * length,
+                                                            rel=1e-8)
+    assert abs(plane_strain_biaxial_stretch(100.0, True)
+               - plane_strain_biaxial_stretch(100.0, False)) > 2e-3
+
+
+@pytest.mark.parametrize("model", ["plane_strain", "axisymmetric"])
+@pytest.mark.parametrize("method", ["rkpm", "fem"])
+def test_follower_pressure_tangent_is_its_derivative(model, method):
+    from skfem import Basis, ElementQuad1, ElementVector
+
+    from skfem_rkpm.approximation.basis import RKBasis
+    from skfem_rkpm.mechanics.loads import FollowerPressure
+    from skfem_rkpm.meshes import rectangle
+
+    mesh = rectangle(1.0, 1.0, 3, 3, origin=(0.5, 0.0))
+    basis = (RKBasis(mesh, vector=True) if method == "rkpm"
+             else Basis(mesh, ElementVector(ElementQuad1())))
+    load = FollowerPressure(basis, "top", 5.0, model)
+    d = 0.05 * np.random.default_rng(0).normal(size=basis.N)
+    f, K = load.evaluate(d, 1.0)
+    h = 1e-6
+    fd = np.array([(load.evaluate(d + h * e, 1.0)[0] - load.evaluate(d - h * e, 1.0)[0])
+                   / (2 * h) for e in np.eye(basis.N)]).T
+    # central differences of a force quadratic in d: round-off ~1e-16 |f| / h
+    np.testing.assert_allclose(K.toarray(), fd, atol=1e-8 * np.abs(K).max())
+    # at d = 0 it is the dead pressure
+    from skfem_rkpm.mechanics.loads import BoundaryLoads, Pressure
+
+    dead = BoundaryLoads(basis, [Pressure("top", 5.0)], model)
+    np.testing.assert_allclose(-load.evaluate(0 * d, 1.0)[0], dead(1.0), atol=1e-12 * 5)

@@ -7,18 +7,20 @@ axisymmetric model) and :class:`Pressure` (normal, on the reference
 boundary) are dead loads: they act on the reference boundary with the
 reference normal, whatever the deformation.  :class:`BoundaryLoads`
 assembles them once and gives ``t -> f_ext`` for
-:func:`skfem_rkpm.solvers.newton.newton_steps`.
+:func:`skfem_rkpm.solvers.newton.newton_steps`.  :class:`FollowerPressure`
+acts on the current boundary instead; its force depends on the
+displacement, so it enters Newton as a contribution with its tangent.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
-from skfem import LinearForm, asm
+from skfem import BilinearForm, LinearForm, asm
 from skfem.helpers import dot
 
 from ..assembly import facet_basis
 
-__all__ = ["History", "Traction", "Pressure", "BoundaryLoads"]
+__all__ = ["History", "Traction", "Pressure", "BoundaryLoads", "FollowerPressure"]
 
 
 class History:
@@ -145,3 +147,85 @@ class BoundaryLoads:
         for history, vector in self.parts:
             f += history(t) * vector
         return f
+
+
+def _apply(A, b):
+    """``A b`` per point: A (2, 2, ...) and b (2, ...)."""
+    return np.einsum("ij...,j...->i...", A, b)
+
+
+class FollowerPressure:
+    """A normal pressure on the current (deformed) boundary, for Newton.
+
+    A pressure ``p`` on the current boundary exerts ``f = -∫ p n da``.  In
+    2D, with the reference unit tangent ``t₀`` (the boundary run with the
+    body on its left, so that ``n₀ = (t₀_y, -t₀_x)``), the current line
+    element is ``dx = F t₀ ds`` and ``n da = (dx_y, -dx_x) ds``, linear in
+    the displacement gradient; the axisymmetric ring adds the current
+    circumference ``2π (X_r + u_r)``:
+
+        f_ext(d) = -∫ p(t) v · (dx_y, -dx_x) w ds,   w = 1 or 2π (X_r + u_r),
+
+    and its derivative in ``d`` is exact.  It is not symmetric: a follower
+    load is not conservative in general.
+
+    As a contribution of :func:`~skfem_rkpm.solvers.newton.newton_steps`
+    (``evaluate(d, t) -> (f, K)`` is added to the internal force) it
+    returns ``-f_ext`` and ``-∂f_ext/∂d``.
+
+    Parameters
+    ----------
+    basis : RKBasis or skfem vector basis
+    boundary : str
+        Named boundary.
+    value : float or table
+        The pressure as a :class:`History` of the load factor.
+    model : {"plane_strain", "axisymmetric"}
+    """
+
+    def __init__(self, basis, boundary, value, model="plane_strain"):
+        if basis.mesh.dim() != 2:
+            raise ValueError("a follower pressure needs a 2D model (plane strain or "
+                             "axisymmetric)")
+        self.boundary, self.model = boundary, model
+        self.history = History(value, f"{boundary} pressure")
+        self.fb = facet_basis(basis, boundary)
+
+    def _forms(self, p):
+        axisymmetric = self.model == "axisymmetric"
+
+        def current(w):
+            n0 = w.n
+            t0 = np.array([-n0[1], n0[0]])
+            dx = t0 + _apply(w.u.grad, t0)
+            return t0, np.array([dx[1], -dx[0]])
+
+        @LinearForm
+        def force(v, w):
+            _, nda = current(w)
+            ring = 2 * np.pi * (w.x[0] + w.u[0]) if axisymmetric else 1.0
+            return -p * dot(v, nda) * ring
+
+        @BilinearForm
+        def stiffness(du, v, w):
+            t0, nda = current(w)
+            ddx = _apply(du.grad, t0)
+            dnda = np.array([ddx[1], -ddx[0]])
+            if not axisymmetric:
+                return -p * dot(v, dnda)
+            ring = 2 * np.pi * (w.x[0] + w.u[0])
+            return -p * (dot(v, dnda) * ring + dot(v, nda) * 2 * np.pi * du[0])
+
+        return force, stiffness
+
+    def evaluate(self, d, t):
+        """``(-f_ext, -∂f_ext/∂d)`` at coefficients ``d`` and load factor ``t``."""
+        force, stiffness = self._forms(self.history(t))
+        u = self.fb.interpolate(d)
+        return -asm(force, self.fb, u=u), -asm(stiffness, self.fb, u=u)
+
+    def commit(self):
+        """Nothing to keep: the load has no history of its own."""
+
+    def resultants(self):
+        return {}

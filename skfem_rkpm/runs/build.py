@@ -13,7 +13,7 @@ import numpy as np
 from skfem import Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2, ElementVector
 
 from ..approximation.basis import RKBasis
-from ..mechanics.loads import BoundaryLoads, History, Pressure, Traction
+from ..mechanics.loads import BoundaryLoads, FollowerPressure, History, Pressure, Traction
 from ..mechanics.problem import SolidProblem
 from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR
 from ..mechanics.rigid_contact import RigidContact
@@ -40,6 +40,13 @@ class Simulation:
     load: object = None
     tools: list = field(default_factory=list)
     points: dict = field(default_factory=dict)
+    follower_loads: list = field(default_factory=list)
+
+    @property
+    def contributions(self):
+        """The nonlinear forces Newton adds to the internal force: tool
+        contact and follower pressures."""
+        return [*self.tools, *self.follower_loads]
 
     @property
     def method(self):
@@ -75,7 +82,7 @@ def build(scene, method=None):
     locking = None if locking == "none" else locking
     problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
 
-    prescribed, loads = [], []
+    prescribed, loads, followers = [], [], []
     for name, section in scene.items():
         if not name.startswith("boundary."):
             continue
@@ -88,7 +95,9 @@ def build(scene, method=None):
         for comp, value in prescribed_components(section["displacement"]).items():
             prescribed.append(Prescribed(boundary, comp, _values(value, f"{name}"),
                                          section["method"]))
-        if section["pressure"] is not None:
+        if section["pressure"] is not None and section["follower"]:
+            followers.append(FollowerPressure(basis, boundary, section["pressure"], model))
+        elif section["pressure"] is not None:
             loads.append(Pressure(boundary, section["pressure"]))
         if section["traction"] is not None:
             loads.append(Traction(boundary, prescribed_components(section["traction"])))
@@ -103,7 +112,7 @@ def build(scene, method=None):
     tools = [tool_from_scene(name.split(".", 1)[1], section, basis, problem, scene)
              for name, section in tool_sections.items()]
     points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
-    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points)
+    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points, followers)
 
 
 def _values(value, name):

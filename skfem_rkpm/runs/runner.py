@@ -139,7 +139,7 @@ def run(sim, out=None, progress=True, resume=False, log=None):
                               steps=steps["count"], tol=steps["tolerance"],
                               max_iterations=steps["max_iterations"],
                               max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
-                              contributions=sim.tools, start=start, on_step=on_step,
+                              contributions=sim.contributions, start=start, on_step=on_step,
                               linear_solver=_linear_solver(sim))
     finally:
         bar.close()

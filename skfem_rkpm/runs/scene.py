@@ -307,8 +307,11 @@ SCHEMA = {
         "method": Key("str", "nodal", choices=("nodal", "weak"),
                       doc="prescribe nodal values (transformation method) or weakly"),
         "pressure": Key("any", check=_history,
-                        doc="normal pressure on the reference boundary (dead load): "
-                            + HISTORY),
+                        doc="normal pressure, positive inward, on the reference boundary "
+                            "(dead load; see follower): " + HISTORY),
+        "follower": Key("bool", False,
+                        doc="the pressure acts on the current boundary (its normal and "
+                            "length follow the deformation) instead of the reference one"),
         "traction": Key("any", check=_vector_history,
                         doc="traction vector per unit reference length (axisymmetric: area "
                             "of the full ring), a dead load: [x, y] reached linearly in t, "
@@ -499,6 +502,9 @@ def _check_combinations(scene, fail):
         fail("material.yield", "a table's first stress is the initial yield stress; "
                                "omit 'yield'")
     for name, section in scene.items():
+        if name.startswith("boundary.") and section["follower"] \
+                and section["pressure"] is None:
+            fail(f"{name}.follower", "applies to a pressure; give 'pressure'")
         if name.startswith("boundary.") and section["fix"]:
             for comp in section["fix"]:
                 if comp not in COMPONENTS:

@@ -13,9 +13,10 @@ import numpy as np
 from skfem import Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2, ElementVector
 
 from ..approximation.basis import RKBasis
+from ..mechanics.force_control import ForceDrivenContact
 from ..mechanics.loads import BoundaryLoads, FollowerPressure, History, Pressure, Traction
-from ..mechanics.problem import SolidProblem
 from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR
+from ..mechanics.problem import SolidProblem
 from ..mechanics.rigid_contact import RigidContact
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
@@ -131,7 +132,9 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     (``points``, ``fillet``) or ``"arc"`` (``center``, ``radius``,
     ``angles`` in degrees); ``motion``, ``friction``, ``slaves``,
     ``penalty``, ``penalty_factor`` (``factor``), ``collocation``,
-    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.
+    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.  With
+    ``force`` the tool is driven by its push along ``direction`` (default
+    the platen's normal): a :class:`ForceDrivenContact`.
     """
     kind = section.get("kind", "platen")
     motion = section.get("motion") or (0.0, 0.0)
@@ -147,9 +150,16 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     if problem.basis is not basis:
         raise ValueError("the basis must be the problem's basis")
     factor = section.get("penalty_factor")
-    return RigidContact(problem, tool, section.get("slaves"),
-                        section.get("friction", 0.0),
-                        section.get("collocation") or "nodal", section.get("penalty"),
-                        factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
-                        enforcement=section.get("enforcement") or "penalty",
-                        tolerance=section.get("tolerance") or DEFAULT_AUGMENTED_TOLERANCE)
+    contact = RigidContact(problem, tool, section.get("slaves"),
+                           section.get("friction", 0.0),
+                           section.get("collocation") or "nodal", section.get("penalty"),
+                           factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
+                           enforcement=section.get("enforcement") or "penalty",
+                           tolerance=section.get("tolerance") or DEFAULT_AUGMENTED_TOLERANCE)
+    if section.get("force") is None:
+        return contact
+    direction = section.get("direction") or section.get("normal")
+    try:
+        return ForceDrivenContact(contact, direction, section["force"])
+    except ValueError as err:
+        raise SceneError(f"[tools.{name}]: {err}") from err

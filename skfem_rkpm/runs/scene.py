@@ -136,6 +136,13 @@ SCHEMA = {
         "angles": Key("list[float]", check=_pair, doc="arc: [start, end] in degrees"),
         "motion": Key("list[float]", [0.0, 0.0], check=_pair,
                       doc="displacement of the tool at the end of the run"),
+        "force": Key("any", check=_history,
+                     doc="force-driven tool: its push on the body along direction "
+                         "follows this force history (" + HISTORY + "); the tool travels "
+                         "as needed, on top of motion"),
+        "direction": Key("list[float]", check=_pair,
+                         doc="force-driven tool: direction of travel and push (default: "
+                             "a platen's normal)"),
         "friction": Key("any", 0.0, check=_friction, doc='Coulomb μ, or "stick"'),
         "slaves": Key("list[str]", check=_not_empty,
                       doc="boundaries whose particles may touch the tool "
@@ -374,6 +381,9 @@ def _check_combinations(scene, fail):
             for key in needs:
                 if section[key] is None:
                     fail(name, f"a {section['kind']} needs {key!r}")
+            if section["force"] is not None and section["direction"] is None \
+                    and section["kind"] != "platen":
+                fail(f"{name}.force", f"a force-driven {section['kind']} needs 'direction'")
             try:
                 tool_from(name.split(".", 1)[1], section)
             except ValueError as err:

@@ -116,3 +116,16 @@ def test_force_driven_arc_needs_a_direction():
         'kind = "arc"\ncenter = [0.5, 2.0]\nradius = 1.0\nangles = [200.0, 340.0]')
     with pytest.raises(SceneError, match="force-driven arc needs 'direction'"):
         parse_scene(scene)
+
+
+def test_force_driven_tool_with_augmented_contact_travels_by_the_shortening():
+    """With the augmented Lagrangian contact (penetration driven to
+    1e-6 h_c) the travel is the shortening itself: measured 4e-12 apart."""
+    scene = SCENE.format(force="30.0").replace("penalty = 1e5", 'enforcement = "augmented"')
+    result = run(build(parse_scene(scene), "fem"), progress=False)
+    assert result.completed, result.message
+    assert -result.history[-1].reactions["holder"][1] == pytest.approx(30.0, rel=1e-10)
+    lam = plane_strain_stretch(30.0)
+    assert result.gauges[-1]["corner y"] == pytest.approx(lam, rel=1e-9)
+    # 1e-6 h_c of penetration allowed (h_c = 1/3) against a travel of 0.026
+    assert result.gauges[-1]["holder travel"] == pytest.approx(1 - lam, rel=2e-5)

@@ -57,7 +57,7 @@ def _run_one(path, settings, method, out, resume, quiet):
         count = sim.scene["steps"]["count"]
         done = scene_step(result.history[-1].t, count) if result.history else 0
         solved = len(result.history)
-        cut = f" ({solved} solved with cut-backs)" if solved != done else ""
+        cut = f" (in {solved} sub-steps)" if solved != done else ""
         print(f"{result.message}: {done} of {count} steps{cut}, {iterations} Newton "
               f"iterations, {seconds:.1f} s")
     return sim, result

@@ -49,8 +49,9 @@ def _gauges(sim, probes, d):
 def scene_step(t, count):
     """The scene's load step (1..count) that load factor ``t`` belongs to.
 
-    A step that was cut back is solved in sub-steps; they all belong to the
-    scene step whose end they approach: ``ceil(t count)``.
+    A step that was cut back, or that the step control splits, is solved
+    in sub-steps; they all belong to the scene step whose end they
+    approach: ``ceil(t count)``.
     """
     return max(1, int(np.ceil(t * count - 1e-9)))
 
@@ -59,8 +60,8 @@ class Progress:
     """Scene step, load factor, Newton iterations, elapsed time and ETA: one
     updating line on a terminal, a new line every 10 % of the load otherwise
     (log files, pipes).  ``count``: the scene's number of steps; the step
-    shown is the scene's (``step 7/100``), also when a step was cut back
-    into sub-steps; without ``count``, the solver's step counter."""
+    shown is the scene's (``step 7/100``), also when a step is solved in
+    sub-steps; without ``count``, the solver's step counter."""
 
     def __init__(self, stream=sys.stderr, enabled=True, count=None):
         self.stream, self.enabled, self.count = stream, enabled, count

@@ -99,8 +99,14 @@ def _orient_ccw(p, t):
 
 
 def _make_mesh(p, t, kind):
-    """Build an oriented scikit-fem mesh of the given kind."""
-    t = _orient_ccw(p, t)
+    """Build an oriented scikit-fem mesh of the given kind.
+
+    Both arrays are handed over C-contiguous: scikit-fem would otherwise
+    copy them and print "Transforming over 1000 vertices to C_CONTIGUOUS."
+    (gmsh's coordinates arrive transposed).
+    """
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    t = np.ascontiguousarray(_orient_ccw(p, t))
     if kind == "tri":
         # keep the counter-clockwise vertex order instead of sorting it
         return skfem.MeshTri1(p, t, sort_t=False)

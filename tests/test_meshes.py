@@ -350,3 +350,17 @@ def test_local_spacing_in_1d_and_3d():
     g = np.linspace(0, 1, 5)
     hexes = skfem.MeshHex.init_tensor(g, g, g)
     np.testing.assert_allclose(meshes.local_spacing(hexes), 0.25)
+
+
+def test_large_gmsh_mesh_is_handed_to_skfem_contiguous(caplog):
+    """scikit-fem logs "Transforming over 1000 vertices to C_CONTIGUOUS."
+    for arrays that are not; gmsh's transposed coordinates were."""
+    import logging
+
+    from skfem_rkpm.meshes import gmsh_rectangle
+
+    with caplog.at_level(logging.WARNING):
+        mesh = gmsh_rectangle(1.0, 1.0, 0.025)
+    assert mesh.nvertices > 1000 and mesh.nelements > 1000
+    assert "C_CONTIGUOUS" not in caplog.text
+    assert mesh.p.flags["C_CONTIGUOUS"] and mesh.t.flags["C_CONTIGUOUS"]

@@ -10,13 +10,17 @@ from skfem import Basis, ElementQuad1, ElementVector
 from skfem_rkpm import RKBasis
 from skfem_rkpm.verification.exact import uniaxial_compression
 from skfem_rkpm.meshes import rectangle
-from skfem_rkpm.mechanics.materials import J2Material, MaterialState, linear, perfect, swift
+from skfem_rkpm.mechanics.materials import (J2Material, MaterialState, linear, perfect, swift,
+                                            table, voce)
 from skfem_rkpm.mechanics.problem import SolidProblem
 from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 
 E, NU = 200e3, 0.3
 LAWS = {"perfect": perfect(300.0), "linear": linear(300.0, 2000.0),
-        "swift": swift(589.0, 1e-4, 0.216)}
+        "swift": swift(589.0, 1e-4, 0.216), "voce": voce(300.0, 150.0, 12.0, 500.0),
+        # a concave tensile-test curve; kinks at 0.05, 0.15 (the compression
+        # below reaches ε̄ᵖ = 0.36, into the extrapolated last segment)
+        "table": table([0.0, 0.05, 0.15, 0.3], [300.0, 380.0, 440.0, 470.0])}
 
 
 def random_state(n, rng):

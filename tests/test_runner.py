@@ -99,7 +99,7 @@ def test_cli_runs_a_scene_file(tmp_path, capsys):
     scene.write_text(BLOCK)
     assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--quiet",
                  "--set", "steps.count=2", "--method", "fem"]) == 0
-    assert "completed: 2 steps" in capsys.readouterr().out
+    assert "completed: 2 of 2 steps" in capsys.readouterr().out
     assert (tmp_path / "o" / "deformed.png").exists()
 
 
@@ -118,3 +118,25 @@ def test_progress_prints_one_line_per_tenth_of_the_load_when_not_a_terminal():
     assert len(lines) == 10
     assert "\r" not in stream.getvalue()
     assert lines[-1].startswith("[" + "#" * 30 + "] step 40 t=1.000 newton=2")
+
+
+def test_progress_counts_the_scenes_steps_when_a_step_was_cut():
+    """A 100-step scene whose step 3 was cut in two sub-steps ends at "step
+    100/100", not "step 101"; the sub-steps show the step they belong to."""
+    import io
+    from types import SimpleNamespace
+
+    from skfem_rkpm.runs.runner import Progress, scene_step
+
+    loads = [0.01, 0.02, 0.025, 0.03] + [k / 100 for k in range(4, 101)]
+    stream = io.StringIO()
+    bar = Progress(stream, count=100)
+    for k, t in enumerate(loads, start=1):
+        bar(SimpleNamespace(step=k, t=t, iterations=2))
+    bar.close()
+    assert len(loads) == 101
+    assert [scene_step(t, 100) for t in loads[:5]] == [1, 2, 3, 3, 4]
+    assert "step 100/100 t=1.000" in stream.getvalue().splitlines()[-1]
+    assert "step 101" not in stream.getvalue()
+    # load factors a hair off the targets (sums of halved steps) stay put
+    assert scene_step(0.3 + 1e-12, 10) == 3 and scene_step(0.3 - 1e-12, 10) == 3

@@ -13,7 +13,8 @@ import numpy as np
 import scipy.sparse as sp
 from skfem.element import ElementVector
 
-__all__ = ["transformation", "Constraint", "nodal_constraint", "weak_constraint"]
+__all__ = ["transformation", "Constraint", "ConstraintSet", "nodal_constraint",
+           "weak_constraint"]
 
 
 def transformation(basis):
@@ -121,3 +122,159 @@ def weak_constraint(basis, facets, component, intorder=None):
     pick = sp.csr_matrix((np.ones(1), ([0], [component])), shape=(1, ncomp))
     return Constraint(sp.kron(B, pick, format="csr"), M, nodes, mesh.p[:, nodes],
                       component)
+
+
+class ConstraintSet:
+    """The rows of several :class:`Constraint` stacked, dependent rows removed.
+
+    Two conditions that prescribe the same component at a shared node (two
+    boundaries meeting at a corner, both fixing ``x``) give the same row of
+    ``Λᵀ`` twice; weak conditions on such boundaries give rows that are
+    dependent for FEM bases.  The stacked ``C`` is then rank deficient and
+    neither the saddle-point system nor the reaction fit ``C Cᵀ`` can be
+    factored.  The rows of the conditions that share a column with another
+    condition are tested in the order given; a row dependent on the rows
+    kept before it is removed, and its prescribed value is checked against
+    the same combination of the kept rows' values.
+
+    The multipliers of the removed rows are zero, so at a shared node the
+    reaction counts in the condition listed first, and the resultants of all
+    conditions add up to the total reaction force.
+
+    Parameters
+    ----------
+    constraints : sequence of Constraint
+    N : int
+        Number of coefficients (columns).
+    names : sequence of str, optional
+        A name per constraint, for error messages.
+    tol : float
+        A row is dependent when its part orthogonal to the kept rows is
+        below ``tol`` times its norm (``C Cᵀ`` would otherwise have a
+        condition number near ``tol⁻²``).
+    """
+
+    def __init__(self, constraints, N, names=None, tol=1e-8):
+        self.constraints = list(constraints)
+        self.names = list(names) if names is not None else [
+            f"condition {k}" for k in range(len(self.constraints))]
+        sizes = [len(c) for c in self.constraints]
+        self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        full = sp.vstack([c.C for c in self.constraints] or [sp.csr_matrix((0, N))],
+                         format="csr")
+        owner = np.repeat(np.arange(len(sizes)), sizes)
+        self.keep, self.removed, self.combination = _independent_rows(full, owner, tol)
+        self.owner = owner
+        self.C = full[self.keep]
+
+    def __len__(self):
+        return len(self.keep)
+
+    def values(self, g):
+        """The kept entries of the stacked prescribed values ``g`` (one per
+        row of all constraints); raises ValueError where a removed row's
+        value contradicts the kept rows'."""
+        g = np.asarray(g, dtype=float)
+        if len(self.removed):
+            implied = self.combination @ g[self.keep]
+            scale = np.abs(self.combination) @ np.abs(g[self.keep]) + np.abs(g[self.removed])
+            bad = np.flatnonzero(np.abs(g[self.removed] - implied) > 1e-8 * scale)
+            if bad.size:
+                self._conflict(self.removed[bad[0]], g[self.removed[bad[0]]],
+                               implied[bad[0]])
+        return g[self.keep]
+
+    def _conflict(self, row, value, implied):
+        k = int(self.owner[row])
+        c = self.constraints[k]
+        local = row - self.offsets[k]
+        where = ", ".join(f"{x:.6g}" for x in c.coordinates[:, local])
+        column = np.flatnonzero(self.combination[np.searchsorted(self.removed, row)])
+        others = sorted({self.names[int(self.owner[self.keep[j]])] for j in column})
+        raise ValueError(
+            f"{self.names[k]} and {', '.join(others)} prescribe different values of "
+            f"component {c.component} at the shared node X = ({where}): {value:.6g} and "
+            f"{implied:.6g}; give both the same value there or prescribe it once")
+
+    def expand(self, lam):
+        """Multipliers of every stacked row: ``lam`` on the kept rows, 0 elsewhere."""
+        full = np.zeros(self.offsets[-1])
+        full[self.keep] = lam
+        return full
+
+    def split(self, lam):
+        """The multipliers of each constraint (a list), from those of the kept rows."""
+        full = self.expand(lam)
+        return [full[a:b] for a, b in zip(self.offsets[:-1], self.offsets[1:])]
+
+
+def _independent_rows(C, owner, tol):
+    """Rows of ``C`` to keep, rows removed and their combination of the kept.
+
+    Only conditions that share a column with another condition can have
+    dependent rows (the rows of one condition are independent: rows of the
+    invertible ``Λᵀ``, or boundary integrals against independent hats).
+    Their rows are taken in order (within a condition, those at shared
+    columns last) and a row is removed when its part
+    orthogonal to the rows kept before it is below ``tol`` times its norm
+    (:func:`_in_order_independent`).  A whole condition is taken, not only
+    its rows near the shared columns, because a dependency can reach along
+    it (the weak rows ``∫ N_K u`` of a linear FEM edge combine to the value
+    at its end).
+
+    Returns ``keep`` (sorted row indices), ``removed`` (sorted) and a
+    (len(removed), len(keep)) matrix ``A`` with ``C[removed] = A C[keep]``.
+    """
+    m = C.shape[0]
+    everything = np.arange(m)
+    nothing = (everything, np.zeros(0, np.int64), np.zeros((0, m)))
+    if m == 0 or owner.max(initial=0) == 0:
+        return nothing
+    pattern = abs(C).astype(bool).astype(np.int64).tocsr()
+    ngroups = owner.max() + 1
+    groups = sp.csr_matrix((np.ones(m), (owner, everything)), shape=(ngroups, m))
+    touches = ((groups @ pattern) > 0).astype(np.int64)
+    shared = np.asarray(touches.sum(axis=0)).ravel() >= 2
+    involved = np.asarray(touches[:, shared].sum(axis=1)).ravel() > 0
+    candidates = np.flatnonzero(involved[owner])
+    if candidates.size == 0:
+        return nothing
+    # within each condition the rows at the shared columns come last, so
+    # that a dependency removes a row at a shared node, not one far from it
+    at_shared = (pattern[candidates] @ shared.astype(np.int64)) > 0
+    candidates = candidates[np.lexsort((at_shared, owner[candidates]))]
+    block = C[candidates]
+    rows = block[:, np.unique(block.indices)].toarray()
+    kept, removed_local, coef = _in_order_independent(rows, tol)
+    order = np.argsort(candidates[removed_local])
+    removed = candidates[removed_local][order]
+    keep = np.setdiff1d(everything, removed)
+    A = np.zeros((len(removed), len(keep)))
+    A[:, np.searchsorted(keep, candidates[kept])] = coef[order]
+    return keep, removed, A
+
+
+def _in_order_independent(rows, tol):
+    """Rows of the dense ``rows`` independent of the rows kept before them.
+
+    Classical Gram-Schmidt with a second pass (orthogonal to round-off): a
+    row whose part orthogonal to the kept ones is below ``tol`` times its
+    norm is removed.  Returns the kept and removed positions and the
+    combination ``rows[removed] = coef @ rows[kept]`` (least squares).
+    """
+    Q = np.zeros_like(rows)
+    kept, removed = [], []
+    for i, v in enumerate(rows):
+        n = len(kept)
+        w = v - Q[:n].T @ (Q[:n] @ v)
+        w -= Q[:n].T @ (Q[:n] @ w)
+        size = np.linalg.norm(w)
+        if size > tol * np.linalg.norm(v):
+            Q[n] = w / size
+            kept.append(i)
+        else:
+            removed.append(i)
+    coef = np.zeros((len(removed), len(kept)))
+    if removed:
+        coef = np.linalg.lstsq(rows[kept].T, rows[removed].T, rcond=None)[0].T
+    return np.array(kept, np.int64), np.array(removed, np.int64), coef

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Hardening", "perfect", "linear", "swift", "J2Material", "MaterialState",
-           "ReturnMapError"]
+__all__ = ["Hardening", "perfect", "linear", "swift", "voce", "table", "J2Material",
+           "MaterialState", "ReturnMapError"]
 
 I3 = np.eye(3)
 
@@ -93,6 +93,78 @@ def swift(K, eps0, n):
                          "or a larger eps0")
     return Hardening("swift", lambda a: K * (eps0 + np.maximum(a, 0.0)) ** n,
                      lambda a: K * n * (eps0 + np.maximum(a, 0.0)) ** (n - 1.0))
+
+
+def voce(sigma_y, Q, b, H=0.0):
+    """Voce saturation law ``σ_y + Q (1 - exp(-b ε̄ᵖ)) + H ε̄ᵖ``.
+
+    The yield stress rises by ``Q`` at the rate ``b`` and saturates at
+    ``σ_y + Q``; the optional linear term ``H ε̄ᵖ`` keeps a slope at large
+    strains (``Q, b, H >= 0``).
+    """
+    sigma_y = _number(sigma_y, "yield stress")
+    Q = _number(Q, "Voce saturation stress Q", strict=False)
+    b = _number(b, "Voce rate b", strict=False)
+    H = _number(H, "hardening modulus H", strict=False)
+    return Hardening(
+        "voce",
+        lambda a: sigma_y + Q * -np.expm1(-b * np.maximum(a, 0.0)) + H * a,
+        lambda a: Q * b * np.exp(-b * np.maximum(a, 0.0)) + H + 0.0 * a)
+
+
+def table(strains, stresses, extrapolation="linear"):
+    """Piecewise-linear flow curve through the points ``(ε̄ᵖ_k, σ_k)``.
+
+    The points of a tensile test's true stress against true plastic strain:
+    ``strains`` start at 0 (``stresses[0]`` is the initial yield stress) and
+    increase; ``stresses`` are positive and do not decrease (a softening
+    curve makes the return map and the boundary value problem ill-posed).
+    Between the points the stress is interpolated linearly; beyond the last
+    point it continues along the last segment (``extrapolation="linear"``)
+    or stays at the last stress (``"constant"``).  The slope at a point is
+    that of the segment that starts there.
+    """
+    e = np.asarray(strains, dtype=float)
+    s = np.asarray(stresses, dtype=float)
+    where = "flow curve table"
+    if e.ndim != 1 or e.shape != s.shape or len(e) < 2:
+        raise ValueError(f"{where}: needs at least two (strain, stress) points with as "
+                         f"many strains as stresses, got {e.shape} and {s.shape}")
+    if not (np.all(np.isfinite(e)) and np.all(np.isfinite(s))):
+        raise ValueError(f"{where}: the values must be finite")
+    if e[0] != 0.0:
+        raise ValueError(f"{where}: the first plastic strain must be 0 (the initial yield "
+                         f"stress), not {e[0]:g}")
+    steps = np.diff(e)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise ValueError(f"{where}: plastic strains must increase; point {k + 1} "
+                         f"({e[k]:g}) does not exceed point {k} ({e[k - 1]:g})")
+    if s[0] <= 0:
+        raise ValueError(f"{where}: the initial yield stress must be positive, not {s[0]:g}")
+    slopes = np.diff(s) / steps
+    if np.any(slopes < 0):
+        k = int(np.flatnonzero(slopes < 0)[0]) + 1
+        raise ValueError(f"{where}: the stress falls from point {k} ({s[k - 1]:g}) to "
+                         f"point {k + 1} ({s[k]:g}); softening is not supported")
+    if extrapolation not in ("linear", "constant"):
+        raise ValueError(f"{where}: extrapolation must be 'linear' or 'constant', not "
+                         f"{extrapolation!r}")
+    last = slopes[-1] if extrapolation == "linear" else 0.0
+    segment_slopes = np.append(slopes, last)
+
+    def segment(a):
+        return np.clip(np.searchsorted(e, a, side="right") - 1, 0, len(e) - 1)
+
+    def stress(a):
+        a = np.maximum(np.asarray(a, dtype=float), 0.0)
+        k = segment(a)
+        return s[k] + segment_slopes[k] * (a - e[k])
+
+    def slope(a):
+        return segment_slopes[segment(np.maximum(np.asarray(a, dtype=float), 0.0))]
+
+    return Hardening("table", stress, slope)
 
 
 @dataclass
@@ -214,15 +286,28 @@ class J2Material:
         return tau, eps, alpha_n + dgamma, dgamma, q_trial, H
 
     def _consistency(self, q_trial, alpha_n, tol, maxiter):
-        """Solve ``q_trial - 3G Δγ - σ_y(ε̄ᵖ_n + Δγ) = 0`` by Newton's method."""
+        """Solve ``q_trial - 3G Δγ - σ_y(ε̄ᵖ_n + Δγ) = 0`` by Newton's method.
+
+        The residual falls strictly in ``Δγ`` (non-negative hardening
+        slope), is positive at 0 and negative at ``q_trial / 3G``; Newton
+        iterates that leave the bracket kept around the root are replaced
+        by bisection, so that kinks of a tabulated flow curve cannot make
+        Newton cycle.
+        """
         G = self.G
         dgamma = np.zeros_like(q_trial)
+        lo, hi = np.zeros_like(q_trial), q_trial / (3.0 * G)
         for _ in range(maxiter):
             sy, H = self.hardening(alpha_n + dgamma)
             f = q_trial - 3.0 * G * dgamma - sy
-            dgamma = dgamma + f / (3.0 * G + H)
+            lo = np.where(f > 0, dgamma, lo)
+            hi = np.where(f < 0, dgamma, hi)
+            step = dgamma + f / (3.0 * G + H)
             # round-off in f is relative to the trial stress
-            if np.all(np.abs(f) <= tol * q_trial):
+            converged = np.abs(f) <= tol * q_trial
+            inside = (step >= lo) & (step <= hi)
+            dgamma = np.where(inside | converged, step, 0.5 * (lo + hi))
+            if np.all(converged):
                 break
         else:
             bad = np.flatnonzero(~(np.abs(f) <= tol * q_trial))

@@ -1,25 +1,27 @@
 """Scene to library objects: :func:`build` maps a validated scene dict
 one-to-one onto a mesh, a basis, a
 :class:`~skfem_rkpm.mechanics.problem.SolidProblem`, the
-:class:`~skfem_rkpm.solvers.newton.Prescribed` conditions, pressure loads
-and rigid tools with their contact (:class:`Simulation`).
+:class:`~skfem_rkpm.solvers.newton.Prescribed` conditions (fixed or moved
+boundaries), the :class:`~skfem_rkpm.mechanics.loads.BoundaryLoads`
+(pressures, tractions) and rigid tools with their contact
+(:class:`Simulation`).
 """
 
 from dataclasses import dataclass, field
 
 import numpy as np
-from skfem import (Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2,
-                   ElementVector, LinearForm, asm)
-from skfem.helpers import dot
+from skfem import Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2, ElementVector
 
 from ..approximation.basis import RKBasis
-from ..assembly import facet_basis
-from ..mechanics.problem import SolidProblem
+from ..mechanics.force_control import ForceDrivenContact
+from ..mechanics.loads import BoundaryLoads, FollowerPressure, History, Pressure, Traction
 from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR
+from ..mechanics.problem import SolidProblem
 from ..mechanics.rigid_contact import RigidContact
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
-from .scene import SceneError, components, material_from, mesh_from, spacing_radius
+from .scene import (SceneError, components, material_from, mesh_from, prescribed_components,
+                    spacing_radius)
 
 __all__ = ["Simulation", "build", "tool_from_scene"]
 
@@ -39,6 +41,13 @@ class Simulation:
     load: object = None
     tools: list = field(default_factory=list)
     points: dict = field(default_factory=dict)
+    follower_loads: list = field(default_factory=list)
+
+    @property
+    def contributions(self):
+        """The nonlinear forces Newton adds to the internal force: tool
+        contact and follower pressures."""
+        return [*self.tools, *self.follower_loads]
 
     @property
     def method(self):
@@ -74,7 +83,7 @@ def build(scene, method=None):
     locking = None if locking == "none" else locking
     problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
 
-    prescribed, pressures = [], []
+    prescribed, loads, followers = [], [], []
     for name, section in scene.items():
         if not name.startswith("boundary."):
             continue
@@ -84,9 +93,16 @@ def build(scene, method=None):
                              f"{sorted(boundaries)}")
         for comp in components(section["fix"] or []):
             prescribed.append(Prescribed(boundary, comp, 0.0, section["method"]))
-        if section["pressure"] is not None:
-            pressures.append((boundary, section["pressure"]))
-    load = _pressure_load(basis, pressures, model) if pressures else None
+        for comp, value in prescribed_components(section["displacement"]).items():
+            prescribed.append(Prescribed(boundary, comp, _values(value, f"{name}"),
+                                         section["method"]))
+        if section["pressure"] is not None and section["follower"]:
+            followers.append(FollowerPressure(basis, boundary, section["pressure"], model))
+        elif section["pressure"] is not None:
+            loads.append(Pressure(boundary, section["pressure"]))
+        if section["traction"] is not None:
+            loads.append(Traction(boundary, prescribed_components(section["traction"])))
+    load = BoundaryLoads(basis, loads, model) if loads else None
     tool_sections = {name: section for name, section in scene.items()
                      if name.startswith("tools.")}
     for name, section in tool_sections.items():
@@ -97,22 +113,16 @@ def build(scene, method=None):
     tools = [tool_from_scene(name.split(".", 1)[1], section, basis, problem, scene)
              for name, section in tool_sections.items()]
     points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
-    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points)
+    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points, followers)
 
 
-def _pressure_load(basis, pressures, model):
-    """``t -> f_ext`` of dead normal pressures on the reference boundary."""
-    f = np.zeros(basis.N)
-    for boundary, p in pressures:
-        fb = facet_basis(basis, boundary)
-
-        @LinearForm
-        def pressure(v, w, p=p):
-            weight = 2 * np.pi * w.x[0] if model == "axisymmetric" else 1.0
-            return -p * dot(w.n, v) * weight
-
-        f += asm(pressure, fb)
-    return lambda t: t * f
+def _values(value, name):
+    """The ``values`` of a :class:`Prescribed`: a number (reached linearly in
+    t, as Prescribed does), or ``(t, x) -> value`` of a table in t."""
+    if isinstance(value, (int, float)):
+        return float(value)
+    history = History(value, name)
+    return lambda t, x: np.full(x.shape[1], history(t))
 
 
 def tool_from_scene(name, section, basis, problem, scene=None):
@@ -122,7 +132,9 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     (``points``, ``fillet``) or ``"arc"`` (``center``, ``radius``,
     ``angles`` in degrees); ``motion``, ``friction``, ``slaves``,
     ``penalty``, ``penalty_factor`` (``factor``), ``collocation``,
-    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.
+    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.  With
+    ``force`` the tool is driven by its push along ``direction`` (default
+    the platen's normal): a :class:`ForceDrivenContact`.
     """
     kind = section.get("kind", "platen")
     motion = section.get("motion") or (0.0, 0.0)
@@ -138,9 +150,16 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     if problem.basis is not basis:
         raise ValueError("the basis must be the problem's basis")
     factor = section.get("penalty_factor")
-    return RigidContact(problem, tool, section.get("slaves"),
-                        section.get("friction", 0.0),
-                        section.get("collocation") or "nodal", section.get("penalty"),
-                        factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
-                        enforcement=section.get("enforcement") or "penalty",
-                        tolerance=section.get("tolerance") or DEFAULT_AUGMENTED_TOLERANCE)
+    contact = RigidContact(problem, tool, section.get("slaves"),
+                           section.get("friction", 0.0),
+                           section.get("collocation") or "nodal", section.get("penalty"),
+                           factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
+                           enforcement=section.get("enforcement") or "penalty",
+                           tolerance=section.get("tolerance") or DEFAULT_AUGMENTED_TOLERANCE)
+    if section.get("force") is None:
+        return contact
+    direction = section.get("direction") or section.get("normal")
+    try:
+        return ForceDrivenContact(contact, direction, section["force"])
+    except ValueError as err:
+        raise SceneError(f"[tools.{name}]: {err}") from err

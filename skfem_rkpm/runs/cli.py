@@ -35,7 +35,7 @@ def _scene_path(name):
 
 def _run_one(path, settings, method, out, resume, quiet):
     from .plot import save_run_figures
-    from .runner import build, run
+    from .runner import build, run, scene_step
 
     scene = load_scene(path, settings)
     sim = build(scene, method)
@@ -54,7 +54,11 @@ def _run_one(path, settings, method, out, resume, quiet):
     iterations = sum(r.iterations for r in result.history)
     seconds = sum(r.seconds for r in result.history)
     if root:
-        print(f"{result.message}: {len(result.history)} steps, {iterations} Newton "
+        count = sim.scene["steps"]["count"]
+        done = scene_step(result.history[-1].t, count) if result.history else 0
+        solved = len(result.history)
+        cut = f" (in {solved} sub-steps)" if solved != done else ""
+        print(f"{result.message}: {done} of {count} steps{cut}, {iterations} Newton "
               f"iterations, {seconds:.1f} s")
     return sim, result
 

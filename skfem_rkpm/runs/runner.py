@@ -20,7 +20,7 @@ from ..solvers.petsc import is_root
 from .build import Simulation, build
 from .io import FieldWriter, write_history
 
-__all__ = ["Simulation", "build", "run"]
+__all__ = ["Simulation", "build", "run", "scene_step", "Progress"]
 
 #: linear solvers that partition the rows by the dof locations
 DISTRIBUTED = ("petsc", "petsc-gamg")
@@ -46,13 +46,25 @@ def _gauges(sim, probes, d):
     return out
 
 
-class Progress:
-    """Step, load factor, Newton iterations, elapsed time and ETA: one
-    updating line on a terminal, a new line every 10 % of the load otherwise
-    (log files, pipes)."""
+def scene_step(t, count):
+    """The scene's load step (1..count) that load factor ``t`` belongs to.
 
-    def __init__(self, stream=sys.stderr, enabled=True):
-        self.stream, self.enabled = stream, enabled
+    A step that was cut back, or that the step control splits, is solved
+    in sub-steps; they all belong to the scene step whose end they
+    approach: ``ceil(t count)``.
+    """
+    return max(1, int(np.ceil(t * count - 1e-9)))
+
+
+class Progress:
+    """Scene step, load factor, Newton iterations, elapsed time and ETA: one
+    updating line on a terminal, a new line every 10 % of the load otherwise
+    (log files, pipes).  ``count``: the scene's number of steps; the step
+    shown is the scene's (``step 7/100``), also when a step is solved in
+    sub-steps; without ``count``, the solver's step counter."""
+
+    def __init__(self, stream=sys.stderr, enabled=True, count=None):
+        self.stream, self.enabled, self.count = stream, enabled, count
         self.start = time.perf_counter()
         self.live = bool(getattr(stream, "isatty", lambda: False)())
         self.next_line = 0.1
@@ -64,7 +76,9 @@ class Progress:
         eta = elapsed * (1 - record.t) / max(record.t, 1e-12)
         width = 30
         done = int(round(width * record.t))
-        text = (f"[{'#' * done}{'.' * (width - done)}] step {record.step} "
+        step = (f"{scene_step(record.t, self.count)}/{self.count}" if self.count
+                else f"{record.step}")
+        text = (f"[{'#' * done}{'.' * (width - done)}] step {step} "
                 f"t={record.t:.3f} newton={record.iterations} "
                 f"elapsed {elapsed:.1f}s eta {eta:.1f}s")
         if self.live:
@@ -104,7 +118,7 @@ def run(sim, out=None, progress=True, resume=False, log=None):
     if out is not None and output["fields"]:
         name = "fields.xdmf" if start == 0 else f"fields-from-t{start:.4f}.xdmf"
         fields = FieldWriter(out / name, sim.problem).__enter__()
-    bar = Progress(enabled=progress)
+    bar = Progress(enabled=progress, count=steps["count"])
     history = list(past)
 
     def on_step(record, d, evaluation):
@@ -126,7 +140,7 @@ def run(sim, out=None, progress=True, resume=False, log=None):
                               steps=steps["count"], tol=steps["tolerance"],
                               max_iterations=steps["max_iterations"],
                               max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
-                              contributions=sim.tools, start=start, on_step=on_step,
+                              contributions=sim.contributions, start=start, on_step=on_step,
                               linear_solver=_linear_solver(sim))
     finally:
         bar.close()

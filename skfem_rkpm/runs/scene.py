@@ -19,9 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from ..solvers.backend import BACKENDS
+from .scene_values import (COMPONENTS, HISTORY, _angle_span, _annulus_radii, _cell_counts,
+                           _flow_curve, _friction, _grading, _history, _increasing_pair,
+                           _named_points, _non_negative, _not_empty, _pair, _poisson,
+                           _polyline_points, _positive, _quadrature, _segments,
+                           _vector_history)
 
 __all__ = ["SceneError", "SCHEMA", "load_scene", "parse_scene", "apply_setting",
-           "schema_markdown"]
+           "schema_markdown", "prescribed_components"]
 
 
 class SceneError(ValueError):
@@ -40,100 +45,6 @@ class Key:
     check: object = None  # callable value -> error text or None
 
 
-def _positive(v):
-    return None if v > 0 else "must be positive"
-
-
-def _quadrature(v):
-    if v < 1:
-        return "must be positive"
-    return None if v <= MAX_QUADRATURE else (
-        f"must be at most {MAX_QUADRATURE} (the highest Gauss rule for triangles)")
-
-
-def _non_negative(v):
-    return None if v >= 0 else "must not be negative"
-
-
-def _poisson(v):
-    return None if -1.0 < v < 0.5 else "must lie in (-1, 0.5)"
-
-
-def _pair(v):
-    return None if len(v) == 2 else "needs two values"
-
-
-def _not_empty(v):
-    return None if v else "must name at least one boundary (omit the key for all of them)"
-
-
-def _cell_counts(v):
-    if len(v) != 2:
-        return "needs two values [nx, ny]"
-    return None if min(v) >= 1 else "needs at least one cell in each direction"
-
-
-def _grading(v):
-    if len(v) != 2:
-        return "needs two values"
-    return None if min(v) >= 1 else "ratios must be >= 1 (largest / smallest cell)"
-
-
-def _is_number(x):
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
-
-
-def _xy(v):
-    """True if ``v`` is a point [x, y] of two finite numbers."""
-    return (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)
-            and all(math.isfinite(x) for x in v))
-
-
-def _polyline_points(v):
-    if isinstance(v, list) and len(v) >= 2 and all(_xy(p) for p in v):
-        return None
-    return "must be a list of at least two [x, y] points of finite numbers"
-
-
-def _named_points(v):
-    if isinstance(v, dict) and all(_xy(p) for p in v.values()):
-        return None
-    return "must be a table of points, {name = [X, Y], ...}, of finite numbers"
-
-
-def _increasing_pair(v):
-    if len(v) != 2:
-        return "needs two values [min, max]"
-    return None if v[1] > v[0] else "needs min < max"
-
-
-def _friction(v):
-    if isinstance(v, str):
-        return None if v == "stick" else 'must be a number >= 0 or "stick"'
-    if _is_number(v) and math.isinf(v) and v > 0:
-        return 'must be finite; use "stick" for no sliding'
-    return None if _is_number(v) and v >= 0 else 'must be a number >= 0 or "stick"'
-
-
-def _segments(v):
-    message = "must be a list of [end, cells] pairs with increasing ends and cells >= 1"
-    if not isinstance(v, list) or not v:
-        return message
-    ends = []
-    for item in v:
-        if not (isinstance(item, list) and len(item) == 2
-                and all(_is_number(x) for x in item) and math.isfinite(item[0])
-                and isinstance(item[1], int) and item[1] >= 1):
-            return message
-        ends.append(float(item[0]))
-    return None if all(b > a for a, b in zip(ends, ends[1:])) else message
-
-
-COMPONENTS = {"x": 0, "y": 1, "z": 2, "r": 0}
-
-#: highest Gauss rule degree scikit-fem has for triangles
-MAX_QUADRATURE = 19
-
 SCHEMA = {
     "model": {
         "type": Key("str", "plane_strain", choices=("plane_strain", "axisymmetric", "3d"),
@@ -142,15 +53,25 @@ SCHEMA = {
         "title": Key("str", "", doc="a name for reports"),
     },
     "geometry": {
-        "kind": Key("str", "rectangle", choices=("rectangle", "gmsh"),
-                    doc="rectangle section with divisions, or a gmsh .geo/.msh file"),
+        "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "gmsh"),
+                    doc="rectangle section with divisions, ring or ring sector (annulus), "
+                        "or a gmsh .geo/.msh file"),
         "x": Key("list[float]", check=_increasing_pair, doc="rectangle: [xmin, xmax]"),
         "y": Key("list[float]", check=_increasing_pair, doc="rectangle: [ymin, ymax]"),
         "divisions": Key("list[int]", check=_cell_counts,
-                         doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) vertices"),
-        "cells": Key("str", "quad", choices=("quad", "tri"), doc="rectangle: cell type"),
+                         doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) "
+                             "vertices; annulus: cells [across the wall, around]"),
+        "cells": Key("str", "quad", choices=("quad", "tri"),
+                     doc="rectangle, annulus: cell type"),
         "grading": Key("list[float]", check=_grading,
-                       doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform)"),
+                       doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform); "
+                           "annulus: [across the wall (smallest at the inner radius), 1]"),
+        "radii": Key("list[float]", check=_annulus_radii,
+                     doc="annulus: [inner, outer] radius; boundaries inner, outer"),
+        "angles": Key("list[float]", [0.0, 360.0], check=_angle_span,
+                      doc="annulus: [start, end] in degrees from the x axis; a sector "
+                          "(span < 360) also has the straight boundaries start and end"),
+        "center": Key("list[float]", [0.0, 0.0], check=_pair, doc="annulus: center"),
         "file": Key("str", doc="gmsh: path of a .msh or .geo file (relative to the scene file) "
                                "with named physical boundaries"),
         "x_segments": Key("any", check=_segments,
@@ -182,12 +103,25 @@ SCHEMA = {
         "E": Key("float", required=True, check=_positive, doc="Young's modulus"),
         "nu": Key("float", required=True, check=_poisson, doc="Poisson's ratio"),
         "yield": Key("float", check=_positive, doc="initial yield stress; omit for elastic"),
-        "hardening": Key("str", "perfect", choices=("perfect", "linear", "swift"),
-                         doc="perfect, linear (yield + H ε̄ᵖ) or swift (K (eps0 + ε̄ᵖ)^n)"),
-        "H": Key("float", 0.0, check=_non_negative, doc="linear: hardening modulus"),
+        "hardening": Key("str", "perfect",
+                         choices=("perfect", "linear", "swift", "voce", "table"),
+                         doc="perfect, linear (yield + H ε̄ᵖ), swift (K (eps0 + ε̄ᵖ)^n), "
+                             "voce (yield + Q (1 - exp(-b ε̄ᵖ)) + H ε̄ᵖ) or table "
+                             "(piecewise-linear curve)"),
+        "H": Key("float", 0.0, check=_non_negative,
+                 doc="linear: hardening modulus; voce: optional linear term"),
         "K": Key("float", check=_positive, doc="swift: strength coefficient"),
         "eps0": Key("float", 1e-4, check=_positive, doc="swift: prestrain"),
         "n": Key("float", check=_positive, doc="swift: exponent"),
+        "Q": Key("float", check=_non_negative, doc="voce: saturation stress increase"),
+        "b": Key("float", check=_non_negative, doc="voce: saturation rate"),
+        "curve": Key("any", check=_flow_curve,
+                     doc="table: [[ε̄ᵖ, σ], ...] true stress against true plastic strain, "
+                         "from ε̄ᵖ = 0 (the initial yield stress), increasing strains, "
+                         "non-decreasing stresses; linear between the points"),
+        "extrapolation": Key("str", "linear", choices=("linear", "constant"),
+                             doc="table: beyond the last point, continue the last "
+                                 "segment's slope or keep the last stress"),
     },
     "tools.*": {
         "kind": Key("str", "platen", choices=("platen", "polyline", "arc"),
@@ -202,6 +136,13 @@ SCHEMA = {
         "angles": Key("list[float]", check=_pair, doc="arc: [start, end] in degrees"),
         "motion": Key("list[float]", [0.0, 0.0], check=_pair,
                       doc="displacement of the tool at the end of the run"),
+        "force": Key("any", check=_history,
+                     doc="force-driven tool: its push on the body along direction "
+                         "follows this force history (" + HISTORY + "); the tool travels "
+                         "as needed, on top of motion"),
+        "direction": Key("list[float]", check=_pair,
+                         doc="force-driven tool: direction of travel and push (default: "
+                             "a platen's normal)"),
         "friction": Key("any", 0.0, check=_friction, doc='Coulomb μ, or "stick"'),
         "slaves": Key("list[str]", check=_not_empty,
                       doc="boundaries whose particles may touch the tool "
@@ -226,7 +167,21 @@ SCHEMA = {
                                     'a symmetry plane, ["x", "y"] to clamp'),
         "method": Key("str", "nodal", choices=("nodal", "weak"),
                       doc="prescribe nodal values (transformation method) or weakly"),
-        "pressure": Key("float", doc="normal pressure reached at the end (ramped linearly)"),
+        "pressure": Key("any", check=_history,
+                        doc="normal pressure, positive inward, on the reference boundary "
+                            "(dead load; see follower): " + HISTORY),
+        "follower": Key("bool", False,
+                        doc="the pressure acts on the current boundary (its normal and "
+                            "length follow the deformation) instead of the reference one"),
+        "traction": Key("any", check=_vector_history,
+                        doc="traction vector per unit reference length (axisymmetric: area "
+                            "of the full ring), a dead load: [x, y] reached linearly in t, "
+                            "or {x = ..., y = ...}, each " + HISTORY),
+        "displacement": Key("any", check=_vector_history,
+                            doc="prescribed displacement of the boundary's points: [x, y] "
+                                "reached linearly in t, or only some components, "
+                                "{y = ...}, each " + HISTORY + "; enforced as fix "
+                                "(method)"),
     },
     "steps": {
         "count": Key("int", 20, check=_positive, doc="load steps"),
@@ -377,7 +332,14 @@ def _check_combinations(scene, fail):
     if scene["model"]["type"] == "3d":
         fail("model.type", '"3d" needs a 3D mesh, but scene geometries (rectangle, gmsh) '
                            'are 2D sections; use "plane_strain" or "axisymmetric"')
-    if geometry["kind"] == "rectangle":
+    if geometry["kind"] == "annulus":
+        for key in ("radii", "divisions"):
+            if geometry[key] is None:
+                fail("geometry", f"an annulus needs {key!r}")
+        if geometry["grading"] is not None and geometry["grading"][1] != 1.0:
+            fail("geometry.grading", "an annulus is graded across the wall only; give "
+                                     "[ratio, 1]")
+    elif geometry["kind"] == "rectangle":
         for key in ("x", "y", "divisions"):
             if geometry[key] is None:
                 fail("geometry", f"a rectangle needs {key!r}")
@@ -391,22 +353,37 @@ def _check_combinations(scene, fail):
     elif geometry["file"] is None:
         fail("geometry", "kind = \"gmsh\" needs 'file'")
     material = scene["material"]
-    if material["hardening"] == "swift" and (material["K"] is None or material["n"] is None):
-        fail("material.hardening", "swift needs K and n")
-    if material["hardening"] != "perfect" and material["yield"] is None \
-            and material["hardening"] != "swift":
-        fail("material.hardening", "needs 'yield'")
+    law = material["hardening"]
+    needs = {"swift": ("K", "n"), "voce": ("yield", "Q", "b"), "table": ("curve",),
+             "linear": ("yield",)}.get(law, ())
+    missing = [key for key in needs if material[key] is None]
+    if missing:
+        fail("material.hardening", f"{law} needs {', '.join(map(repr, missing))}")
+    if law == "table" and material["yield"] is not None:
+        fail("material.yield", "a table's first stress is the initial yield stress; "
+                               "omit 'yield'")
     for name, section in scene.items():
+        if name.startswith("boundary.") and section["follower"] \
+                and section["pressure"] is None:
+            fail(f"{name}.follower", "applies to a pressure; give 'pressure'")
         if name.startswith("boundary.") and section["fix"]:
             for comp in section["fix"]:
                 if comp not in COMPONENTS:
                     fail(f"{name}.fix", f"unknown component {comp!r}; use x, y, z or r")
+            moved = prescribed_components(section["displacement"])
+            both = sorted(set(components(section["fix"])) & set(moved))
+            if both:
+                fail(f"{name}.displacement", f"component {'xy'[both[0]]} is also in fix; "
+                                             "fix holds it at 0, give it once")
         if name.startswith("tools."):
             needs = {"platen": ("point", "normal"), "polyline": ("points",),
                      "arc": ("center", "radius", "angles")}[section["kind"]]
             for key in needs:
                 if section[key] is None:
                     fail(name, f"a {section['kind']} needs {key!r}")
+            if section["force"] is not None and section["direction"] is None \
+                    and section["kind"] != "platen":
+                fail(f"{name}.force", f"a force-driven {section['kind']} needs 'direction'")
             try:
                 tool_from(name.split(".", 1)[1], section)
             except ValueError as err:
@@ -496,13 +473,28 @@ def components(names):
     return [COMPONENTS[n] for n in names]
 
 
+def prescribed_components(values):
+    """``{component index: number or table}`` of a ``displacement`` or
+    ``traction`` value (a vector [x, y] or a table of named components)."""
+    if values is None:
+        return {}
+    if isinstance(values, list):
+        return dict(enumerate(values))
+    return {COMPONENTS[name]: value for name, value in values.items()}
+
+
 def material_from(section):
     """The :class:`~skfem_rkpm.mechanics.materials.J2Material` of a scene."""
-    from ..mechanics.materials import J2Material, linear, perfect, swift
+    from ..mechanics.materials import J2Material, linear, perfect, swift, table, voce
 
     law = section["hardening"]
     if law == "swift":
         hardening = swift(section["K"], section["eps0"], section["n"])
+    elif law == "table":
+        strains, stresses = zip(*section["curve"])
+        hardening = table(strains, stresses, section.get("extrapolation") or "linear")
+    elif law == "voce":
+        hardening = voce(section["yield"], section["Q"], section["b"], section["H"])
     elif section["yield"] is None:
         hardening = None
     elif law == "linear":
@@ -532,6 +524,16 @@ def mesh_from(section, base=None):
     """The background mesh of a scene's geometry section."""
     from ..meshes import graded_rectangle, load, rectangle
 
+    if section["kind"] == "annulus":
+        from ..annulus import annulus
+
+        nr, nt = section["divisions"]
+        grading = (section.get("grading") or [1.0, 1.0])[0]
+        try:
+            return annulus(*section["radii"], nr, nt, section.get("angles") or (0.0, 360.0),
+                           grading, section["cells"], section.get("center") or (0.0, 0.0))
+        except ValueError as err:
+            raise SceneError(f"geometry: {err}") from err
     if section["kind"] == "gmsh":
         path = Path(section["file"])
         if base is not None and not path.is_absolute():

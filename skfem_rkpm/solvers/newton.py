@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..approximation.constraints import nodal_constraint, weak_constraint
+from ..approximation.constraints import ConstraintSet, nodal_constraint, weak_constraint
 from .constrained import solve_constrained
 from .linear import make_solver
 from .step_control import StepControl
@@ -122,7 +122,12 @@ class _Reactions:
 
     def __init__(self, C):
         self.C = C
-        self.lu = splu((C @ C.T).tocsc()) if C.shape[0] else None
+        try:
+            self.lu = splu((C @ C.T).tocsc()) if C.shape[0] else None
+        except RuntimeError as err:
+            raise ValueError(f"the prescribed conditions are linearly dependent ({err}): "
+                             "two of them constrain the same motion; prescribe each "
+                             "component of a node once") from None
 
     def multipliers(self, force):
         """λ with ``Cᵀ λ`` closest to ``force``."""
@@ -216,7 +221,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                else np.asarray(steps, dtype=float))
     log = log or (lambda line: None)
     groups = [p.constraint(problem.basis) for p in prescribed]
-    C = sp.vstack([c.C for c in groups] or [sp.csr_matrix((0, problem.N))], format="csr")
+    rows = ConstraintSet(groups, problem.N, [p.name for p in prescribed])
+    C = rows.C  # shared corners: dependent rows removed
     reactions_fit = _Reactions(C)
     linear_solver = make_solver(linear_solver)
     described = None
@@ -225,8 +231,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         control = StepControl(float(spacing.max()), 1e-6 * float(spacing.min()))
 
     def g(t):
-        return np.concatenate([c.R @ p.at(t, c.coordinates)
-                               for p, c in zip(prescribed, groups)] or [np.zeros(0)])
+        return rows.values(np.concatenate([c.R @ p.at(t, c.coordinates)
+                                           for p, c in zip(prescribed, groups)]
+                                          or [np.zeros(0)]))
 
     def f_ext(t):
         return np.zeros(problem.N) if load is None else load(t)
@@ -271,7 +278,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             if linear_solver.describe() != described:
                 described = linear_solver.describe()
                 log(f"linear solver: {described}")
-            reactions = _reactions(prescribed, groups, lam)
+            reactions = _reactions(prescribed, groups, rows.expand(lam))
             changes = sum(c.status_changes() for c in contributions
                           if hasattr(c, "status_changes"))
             for contribution in contributions:

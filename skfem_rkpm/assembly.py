@@ -14,6 +14,7 @@ as per-cell scalar local functions, computes all local matrices with
 whose sparsity pattern and scatter map are computed once.
 """
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,12 @@ CELLS_PER_BLOCK = 256
 #: entries of the largest per-block temporary (fewer cells per block when a
 #: cell has many local functions): keeps the blocks in cache
 BLOCK_ENTRIES = 2**18
+#: the scatter map finds matrix positions in a dense (test x trial particle)
+#: table of positions if it has at most this many entries, else by binary search
+DENSE_POSITIONS = 2**24
+#: local matrix entries summed per call of bincount when the places of local
+#: entries are looked up block by block (dense table of positions)
+SCATTER_ENTRIES = 2**21
 #: the gradient tables are also kept cell by cell (in the layouts of the
 #: batched products) when they have at most this many entries
 CACHE_ENTRIES = 2**22
@@ -71,11 +78,14 @@ class Layout:
 
 
 def layout(basis):
-    """The :class:`Layout` of an RK basis or of a scikit-fem ``CellBasis``.
+    """The :class:`Layout` of an RK basis or of a scikit-fem ``CellBasis``
+    (a :class:`Layout` is returned as it is).
 
     scikit-fem vector bases must use ``ElementVector``, whose dof ``dim*s + c``
     belongs to scalar dof ``s`` and component ``c``.
     """
+    if isinstance(basis, Layout):
+        return basis
     if hasattr(basis, "element_nodes"):  # RKBasis
         return Layout(basis.element_nodes, basis.values, basis.trial.grads,
                       basis.grads, basis.dx, basis.ncomp, basis.nnodes)
@@ -123,82 +133,175 @@ def axisymmetric_layout(L, radius):
 
 
 class Assembler:
-    """Assemble gradient forms on one basis with a cached sparsity pattern.
+    """Assemble gradient forms with a cached sparsity pattern.
 
     Parameters
     ----------
-    basis : RKBasis or skfem CellBasis
+    basis : RKBasis, skfem CellBasis or Layout
+        The trial basis (the only one unless ``test`` is given).
     axisymmetric : bool
         Add the hoop row ``N/R`` (see :func:`axisymmetric_layout`); x is the
         radius.
+    test : RKBasis, skfem CellBasis or Layout, optional
+        A different test basis on the same cells and quadrature points: the
+        matrices of :meth:`bilinear` then have its dofs as rows and those of
+        ``basis`` as columns.  Only :meth:`bilinear`, :meth:`local_bilinear`,
+        :meth:`matrix`, :meth:`linear` and :meth:`cell_vectors` (test side)
+        serve a rectangular pair.
     """
 
-    def __init__(self, basis, axisymmetric=False):
+    def __init__(self, basis, axisymmetric=False, test=None):
         self.layout = L = layout(basis)
         if axisymmetric:
             radius = np.asarray(basis.global_coordinates())[0]
             self.layout = L = axisymmetric_layout(L, radius)
-        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
-        self.element_dofs = (c * L.element_nodes[:, None, :]
+        self.test_layout = L if test is None else layout(test)
+        if self.test_layout.element_nodes.shape[1] != L.element_nodes.shape[1]:
+            raise ValueError(
+                f"the test basis has {self.test_layout.element_nodes.shape[1]} cells, "
+                f"the trial basis {L.element_nodes.shape[1]}: they must share the cells")
+        T = self.test_layout
+        c, nloc, nelems = T.ncomp, *T.element_nodes.shape
+        self.element_dofs = (c * T.element_nodes[:, None, :]
                              + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)
         self._cache = {}
-        self._build_pattern()
+        self._pattern = None
+
+    @property
+    def square(self):
+        """Trial and test functions are the same scalar functions."""
+        return self.test_layout is self.layout
+
+    def with_layouts(self, trial, test=None):
+        """The same sparsity pattern for other tables of the same functions.
+
+        ``trial`` and ``test`` (default ``trial``) are :class:`Layout` objects
+        with the element nodes and components of this assembler's trial and
+        test layouts, and any rows in their gradient tables (e.g. values and
+        gradients stacked, see :mod:`skfem_rkpm.forms`).  The pattern and
+        scatter map are shared, not recomputed.
+        """
+        test = trial if test is None else test
+        for new, old in ((trial, self.layout), (test, self.test_layout)):
+            if new.ncomp != old.ncomp or new.element_nodes is not old.element_nodes and not \
+                    np.array_equal(new.element_nodes, old.element_nodes):
+                raise ValueError("with_layouts needs the element nodes and components "
+                                 "of the original layouts")
+        other = copy.copy(self)
+        other.layout, other.test_layout = trial, test
+        other._cache = {}
+        return other
 
     def _build_pattern(self):
-        """CSR pattern of the vector matrix and the scatter map of local entries.
+        """CSR pattern of the vector matrix and how local entries find their place.
 
-        The scalar pattern (particle x particle) comes from a sparse product
-        of the cell-particle incidence; each local entry finds its place by
-        binary search in the sorted scalar keys, and scalar entries expand to
-        ``c x c`` blocks analytically.  The scatter map follows the local
-        matrices cell by cell, in the order (cell, a, c, d, b): test slot
-        ``a``, its component ``c``, the trial component ``d``, trial slot ``b``.
+        The scalar pattern (test particle x trial particle) comes from a
+        sparse product of the cell-particle incidences.  If the scalar matrix
+        has at most ``DENSE_POSITIONS`` entries, a dense table of their
+        positions is kept and the places of local entries are looked up
+        block by block of cells when a matrix is summed (nothing as large
+        as the local matrices is stored); otherwise the places of all local
+        entries are found once by binary search in the sorted scalar keys
+        and kept (the scatter map).
         """
-        L = self.layout
-        c, (nloc, nelems), n = L.ncomp, L.element_nodes.shape, L.nscalar
-        cells = np.broadcast_to(np.arange(nelems), (nloc, nelems))
-        incidence = sp.csr_matrix((np.ones(cells.size), (cells.ravel(),
-                                   L.element_nodes.ravel())), shape=(nelems, n))
-        pattern = (incidence.T @ incidence).tocsr()
+        U, V = self.layout, self.test_layout
+        cu, cv = U.ncomp, V.ncomp
+        nelems = U.element_nodes.shape[1]
+        nu, nv = U.nscalar, V.nscalar
+
+        def incidence(L):
+            nloc = L.element_nodes.shape[0]
+            cells = np.broadcast_to(np.arange(nelems), (nloc, nelems))
+            return sp.csr_matrix((np.ones(cells.size), (cells.ravel(),
+                                  L.element_nodes.ravel())), shape=(nelems, L.nscalar))
+
+        pattern = (incidence(V).T @ incidence(U)).tocsr()
         pattern.sort_indices()
         indptr_s, cols_s = pattern.indptr, pattern.indices
-        rows_s = np.repeat(np.arange(n), np.diff(indptr_s))
-        keys = rows_s.astype(np.int64) * n + cols_s
-        nodes = np.ascontiguousarray(L.element_nodes.T)  # (nelems, nloc)
-        I = nodes[:, :, None].astype(np.int64)
-        J = nodes[:, None, :]
-        position = np.searchsorted(keys, (I * n + J).ravel()).reshape(nelems, nloc, nloc)
-        # vector CSR: scalar row I becomes rows cI..cI+c-1, each holding the
-        # c x c blocks of the scalar row in column order
-        length = np.diff(indptr_s)
-        start = indptr_s[:-1]
-        # entry (cell, a, c_a, c_b, b) goes to c² start_I + c_a c length_I
-        # + c (position - start_I) + c_b, with I the particle of slot a
-        first = start[nodes].astype(np.intp)[:, :, None]
-        block = c * c * first + c * (position - first)  # (E, a, b)
-        row = (c * length[nodes]).astype(np.intp)[:, :, None]  # (E, a, 1)
-        scatter = np.empty((nelems, nloc, c, c, nloc), dtype=np.intp)
-        for c_a in range(c):
-            for c_b in range(c):
-                np.add(block, c_a * row + c_b, out=scatter[:, :, c_a, c_b, :])
-        self._scatter = scatter.reshape(-1)
-        self.nnz = c * c * len(keys)
-        self.indptr = np.concatenate([[0], np.cumsum(np.repeat(c * length, c))])
-        # column indices: vector row cI+a repeats the block columns of row I
-        block_cols = (c * cols_s[:, None] + np.arange(c)[None, :]).ravel()
-        row_length = np.repeat(c * length, c)
-        row_source = np.repeat(c * start, c)
-        offset = np.arange(self.nnz) - np.repeat(self.indptr[:-1], row_length)
-        self._pattern_cols = block_cols[np.repeat(row_source, row_length) + offset]
+        rows_s = np.repeat(np.arange(nv), np.diff(indptr_s))
+        self._nodes_v = np.ascontiguousarray(V.element_nodes.T)  # (nelems, nloc_v)
+        self._nodes_u = np.ascontiguousarray(U.element_nodes.T)
+        self._length, self._start = np.diff(indptr_s), indptr_s[:-1]
+        self._table = scatter = None
+        if nu * nv <= DENSE_POSITIONS:
+            self._table = np.empty((nv, nu), dtype=np.intp)
+            self._table[rows_s, cols_s] = np.arange(len(cols_s))
+        else:
+            keys = rows_s.astype(np.int64) * nu + cols_s
+            position = np.searchsorted(keys, (self._nodes_v[:, :, None].astype(np.int64)
+                                              * nu + self._nodes_u[:, None, :]))
+            scatter = self._expand(position.astype(np.intp), slice(None)).reshape(-1)
+        nnz = cu * cv * len(cols_s)
+        length, start = self._length, self._start
+        indptr = np.concatenate([[0], np.cumsum(np.repeat(cu * length, cv))])
+        # column indices: vector row c_v I + a repeats the block columns of row I
+        block_cols = (cu * cols_s[:, None] + np.arange(cu)[None, :]).ravel()
+        row_length = np.repeat(cu * length, cv)
+        row_source = np.repeat(cu * start, cv)
+        offset = np.arange(nnz) - np.repeat(indptr[:-1], row_length)
+        cols = block_cols[np.repeat(row_source, row_length) + offset]
+        self._pattern = (scatter, nnz, indptr, cols)
+
+    def _expand(self, position, s):
+        """Places in the vector CSR data of the local entries of cells ``s``.
+
+        ``position`` (cells, nloc_v, nloc_u) holds the places of the scalar
+        entries.  Scalar row ``I`` becomes rows ``c_v I + c_a``, each holding
+        the ``c_u``-blocks of the scalar row in column order: entry (cell, a,
+        c_a, c_b, b) goes to ``c_u (position + (c_v - 1) start_I) + c_a c_u
+        length_I + c_b``, with ``I`` the particle of slot ``a``.  The result
+        has the order of the local matrices, (cells, nloc_v, c_v, c_u, nloc_u).
+        """
+        cu, cv = self.layout.ncomp, self.test_layout.ncomp
+        if cu == cv == 1:
+            return position
+        nodes_v = self._nodes_v[s]
+        block = cu * (position + (cv - 1) * self._start[nodes_v][:, :, None])
+        row = (cu * self._length[nodes_v]).astype(np.intp)[:, :, None]  # (E, a, 1)
+        out = np.empty(position.shape[:2] + (cv, cu, position.shape[2]), dtype=np.intp)
+        for c_a in range(cv):
+            for c_b in range(cu):
+                np.add(block, c_a * row + c_b, out=out[:, :, c_a, c_b, :])
+        return out
+
+    def _places(self, s):
+        """Places in the CSR data of the local entries of cells ``s``, flat."""
+        scatter = self._pattern_parts()[0]
+        if scatter is not None:
+            nelems = self.layout.element_nodes.shape[1]
+            return scatter.reshape(nelems, -1)[s].reshape(-1)
+        flat = self._nodes_v[s][:, :, None] * self._table.shape[1]
+        position = np.take(self._table, flat + self._nodes_u[s][:, None, :])
+        return self._expand(position, s).reshape(-1)
+
+    def _pattern_parts(self):
+        if self._pattern is None:
+            self._build_pattern()
+        return self._pattern
+
+    @property
+    def nnz(self):
+        """Stored entries of the assembled matrices."""
+        return self._pattern_parts()[1]
 
     @property
     def N(self):
         return self.layout.N
 
-    def _blocks(self, entries_per_cell=1):
-        """Slices of cells, each block's temporaries at most ``BLOCK_ENTRIES``."""
+    @property
+    def shape(self):
+        """(test dofs, trial dofs) of the assembled matrices."""
+        return (self.test_layout.N, self.layout.N)
+
+    def _block_step(self, entries_per_cell=1, entries=BLOCK_ENTRIES):
+        """Cells per block so that a block's temporaries hold at most ``entries``."""
+        cap = CELLS_PER_BLOCK if entries == BLOCK_ENTRIES else self.layout.dx.shape[0]
+        return max(1, min(cap, entries // entries_per_cell))
+
+    def _blocks(self, entries_per_cell=1, entries=BLOCK_ENTRIES):
+        """Slices of cells, each block's temporaries at most ``entries``."""
         nelems = self.layout.element_nodes.shape[1]
-        step = max(1, min(CELLS_PER_BLOCK, BLOCK_ENTRIES // entries_per_cell))
+        step = self._block_step(entries_per_cell, entries)
         for start in range(0, nelems, step):
             yield slice(start, min(start + step, nelems))
 
@@ -206,52 +309,91 @@ class Assembler:
         """Sum local matrices into the cached CSR pattern.
 
         ``local`` holds one matrix per cell in the order of the scatter map,
-        (nelems, nloc, c, c, nloc) or any shape with as many entries
+        (nelems, nloc_v, c_v, c_u, nloc_u) or any shape with as many entries
         (:meth:`local_bilinear`, :meth:`local_outer`).
         """
-        data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
-        return sp.csr_matrix((data, self._pattern_cols, self.indptr),
-                             shape=(self.N, self.N))
+        scatter, nnz, indptr, cols = self._pattern_parts()
+        if scatter is not None:
+            data = np.bincount(scatter, weights=local.ravel(), minlength=nnz)
+        else:
+            nelems = self.layout.element_nodes.shape[1]
+            local = local.reshape(nelems, -1)
+            data = np.zeros(nnz)
+            for s in self._blocks(local.shape[1], SCATTER_ENTRIES):
+                data += np.bincount(self._places(s), weights=local[s].ravel(),
+                                    minlength=nnz)
+        return sp.csr_matrix((data, cols, indptr), shape=self.shape)
 
     def bilinear(self, C):
         """``∫ ∂_l Ñ_a C_{c l d m} ∂_m N_b``.
 
         Parameters
         ----------
-        C : ndarray, shape (c, dim, c, dim) or (c, dim, c, dim, nelems, nqp)
+        C : ndarray, shape (c_v, dim_v, c_u, dim_u) or (c_v, dim_v, c_u, dim_u, nelems, nqp)
             Tangent (scalar fields: ``c = 1``).
         """
-        return self.matrix(self.local_bilinear(C))
+        if self._pattern_parts()[0] is not None:
+            return self.matrix(self.local_bilinear(C))
+        # local matrices block by block, each summed at once: none is kept
+        scatter, nnz, indptr, cols = self._pattern
+        C, width = self._tangent_matrix(C)
+        nloc_v = self.test_layout.element_nodes.shape[0]
+        data = np.zeros(nnz)
+        for s in self._blocks(nloc_v * width, SCATTER_ENTRIES):
+            local = np.empty((s.stop - s.start, nloc_v, width))
+            step = self._block_step(self.test_layout.dim * self.layout.dx.shape[1] * width)
+            for start in range(s.start, s.stop, step):
+                b = slice(start, min(start + step, s.stop))
+                self._local_block(C, b, local[b.start - s.start:b.stop - s.start])
+            data += np.bincount(self._places(s), weights=local.ravel(), minlength=nnz)
+        return sp.csr_matrix((data, cols, indptr), shape=self.shape)
 
     def local_bilinear(self, C, out=None):
-        """Local matrices of :meth:`bilinear`, shape (nelems, nloc, c, c, nloc).
+        """Local matrices of :meth:`bilinear`, shape (nelems, nloc_v, c_v, c_u, nloc_u).
 
         Per block of cells, ``R = C ∂N`` of the trial functions is formed
         first (a 3-term product per quadrature point), then one batched
         matrix product with the weighted test gradients gives the local
         matrices.  A tangent per point is read in the layout
-        (nelems, nqp, dim, c, c, dim), without a copy if ``C`` is a
+        (nelems, nqp, dim_v, c_v, c_u, dim_u), without a copy if ``C`` is a
         transposed view of an array stored that way.  ``out`` (an earlier
         result) is overwritten instead of allocating new local matrices.
         """
-        L = self.layout
-        c, nloc, nelems = L.ncomp, *L.element_nodes.shape
+        U, V = self.layout, self.test_layout
+        nloc_v, nelems = V.element_nodes.shape
+        C, width = self._tangent_matrix(C)
+        local = (np.empty((nelems, nloc_v, V.ncomp, U.ncomp, U.element_nodes.shape[0]))
+                 if out is None else out)
+        flat = local.reshape(nelems, nloc_v, width)
+        for s in self._blocks(V.dim * U.dx.shape[1] * width):  # size of R
+            self._local_block(C, s, flat[s])
+        return local
+
+    def _tangent_matrix(self, C):
+        """``C`` as a matrix (l c d) x m, per point (nelems, nqp, ., .) or one,
+        and the width c_v c_u nloc_u of a row of the local matrices."""
+        U, V = self.layout, self.test_layout
+        cu, cv, nelems = U.ncomp, V.ncomp, U.element_nodes.shape[1]
         C = np.asarray(C, dtype=float)
-        dim, nqp = L.dim, L.dx.shape[1]
+        dim_u, dim_v, nqp = U.dim, V.dim, U.dx.shape[1]
+        if C.shape[:4] != (cv, dim_v, cu, dim_u) or C.ndim not in (4, 6):
+            raise ValueError(f"tangent has shape {C.shape}; this assembler needs "
+                             f"{(cv, dim_v, cu, dim_u)} (+ (nelems, nqp) per point)")
         if C.ndim == 6:  # (E, q, l, c, d, m) as a matrix (l c d) x m per point
             C = np.ascontiguousarray(C.transpose(4, 5, 1, 0, 2, 3)).reshape(
-                nelems, nqp, dim * c * c, dim)
+                nelems, nqp, dim_v * cv * cu, dim_u)
         else:
-            C = C.transpose(1, 0, 2, 3).reshape(dim * c * c, dim)
-        local = np.empty((nelems, nloc, c, c, nloc)) if out is None else out
-        for s in self._blocks(dim * nqp * c * c * nloc):  # size of R
-            E = s.stop - s.start
-            # R[E, q, (l c d), b] = Σ_m C[E, q, (l c d), m] ∂_m N_b
-            R = np.matmul(C[s] if C.ndim == 4 else C, self._trial_grads(s))
-            # local[E, a, (c d b)] = Σ_(q l) T[E, a, (q l)] R[E, (q l), (c d b)]
-            np.matmul(self._weighted_test_grads(s), R.reshape(E, nqp * dim, c * c * nloc),
-                      out=local[s].reshape(E, nloc, c * c * nloc))
-        return local
+            C = C.transpose(1, 0, 2, 3).reshape(dim_v * cv * cu, dim_u)
+        return C, cv * cu * U.element_nodes.shape[0]
+
+    def _local_block(self, C, s, out):
+        """Local matrices of cells ``s`` into ``out`` (cells, nloc_v, width)."""
+        E, nqp, dim_v = s.stop - s.start, self.layout.dx.shape[1], self.test_layout.dim
+        # R[E, q, (l c d), b] = Σ_m C[E, q, (l c d), m] ∂_m N_b
+        R = np.matmul(C[s] if C.ndim == 4 else C, self._trial_grads(s))
+        # local[E, a, (c d b)] = Σ_(q l) T[E, a, (q l)] R[E, (q l), (c d b)]
+        np.matmul(self._weighted_test_grads(s), R.reshape(E, nqp * dim_v, out.shape[-1]),
+                  out=out)
 
     def _cached(self, key, s, compute):
         """``compute(s)``, from a copy for all cells kept if small enough."""
@@ -270,7 +412,7 @@ class Assembler:
     def _weighted_test_grads(self, s):
         """``∂_l Ñ_a dΩ`` on cells ``s``, shape (cells, nloc, nqp * dim)."""
         return self._cached("test", s,
-                            lambda s: self._weighted_grads(s, self.layout.test_grads))
+                            lambda s: self._weighted_grads(s, self.test_layout.test_grads))
 
     def _weighted_trial_grads(self, s):
         """``∂_l N_a dΩ`` on cells ``s``, shape (cells, nloc, nqp * dim)."""
@@ -279,12 +421,19 @@ class Assembler:
 
     def _weighted_grads(self, s, grads):
         """``grads`` (dim, nloc, nelems, nqp) times ``dΩ`` on cells ``s``, shape
-        (cells, nloc, nqp * dim)."""
+        (cells, nloc, nqp * dim).  ``dΩ`` is the trial layout's, as in
+        scikit-fem's bilinear forms."""
         T = (grads[:, :, s] * self.layout.dx[s]).transpose(2, 1, 3, 0)  # (E, a, q, l)
         return T.reshape(T.shape[0], T.shape[1], -1)
 
+    def _require_square(self, what):
+        if not self.square:
+            raise ValueError(f"Assembler.{what} needs one basis; this assembler has "
+                             "different trial and test bases")
+
     def mass(self, density=1.0):
         """``∫ Ñ_a ρ N_b δ_cd`` (values are not corrected by VCI)."""
+        self._require_square("mass")
         L = self.layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         rho = np.broadcast_to(np.asarray(density, dtype=float), L.dx.shape)
@@ -303,7 +452,9 @@ class Assembler:
 
         ``test=False`` uses the trial gradients instead of the test gradients.
         """
-        L = self.layout
+        if not test:
+            self._require_square("cell_vectors(test=False)")
+        L = self.test_layout
         c, nloc, nelems = L.ncomp, *L.element_nodes.shape
         P = np.asarray(P, dtype=float).reshape(c, L.dim, nelems, -1)
         everything = slice(None)
@@ -316,7 +467,7 @@ class Assembler:
     def scatter(self, local):
         """Sum per-cell vectors (nloc * c, nelems) into a global vector."""
         return np.bincount(self.element_dofs.ravel(), weights=local.ravel(),
-                           minlength=self.N)
+                           minlength=self.test_layout.N)
 
     def linear(self, P):
         """``f[(a,c)] = ∫ ∂_l Ñ_a P_{c l}``; ``P`` has shape (c, dim, nelems, nqp)."""
@@ -328,6 +479,7 @@ class Assembler:
 
     def local_outer(self, u, w):
         """Local matrices of :meth:`outer`, shape (nelems, nloc, c, c, nloc)."""
+        self._require_square("outer")
         U, W = self._outer_factors(u, w)
         return U * W
 
@@ -350,6 +502,7 @@ class Assembler:
 
     def gradient(self, u):
         """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp)."""
+        self._require_square("gradient")
         L = self.layout
         U = np.asarray(u).reshape(L.nscalar, L.ncomp)[L.element_nodes]  # (nloc, nelems, c)
         # H[E, q, m, c] = Σ_a ∂_m N_a [E, q, m, a] U[E, a, c]

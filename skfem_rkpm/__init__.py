@@ -1,6 +1,7 @@
 """skfem-rkpm: the Lagrangian reproducing kernel particle method on scikit-fem."""
 
 from .assembly import Assembler, isotropic_tangent, layout
+from .forms import SlowAssemblyWarning, asm
 from .approximation.basis import RKBasis, RKFacetBasis
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
@@ -16,6 +17,8 @@ __all__ = [
     "RKFacetBasis",
     "ShapeTable",
     "SingularMomentError",
+    "SlowAssemblyWarning",
+    "asm",
     "cubic_spline",
     "isotropic_tangent",
     "layout",

@@ -87,7 +87,8 @@ def layout(basis):
     if isinstance(basis, Layout):
         return basis
     if hasattr(basis, "element_nodes"):  # RKBasis
-        return Layout(basis.element_nodes, basis.values, basis.trial.grads,
+        return Layout(basis.element_nodes, basis.values,
+                      getattr(basis, "trial", basis).grads,
                       basis.grads, basis.dx, basis.ncomp, basis.nnodes)
     ncomp = basis.elem.dim if isinstance(basis.elem, ElementVector) else 1
     first = basis.element_dofs[::ncomp]
@@ -187,6 +188,7 @@ class Assembler:
                     np.array_equal(new.element_nodes, old.element_nodes):
                 raise ValueError("with_layouts needs the element nodes and components "
                                  "of the original layouts")
+        self._pattern_parts()  # built once, here, for all the copies
         other = copy.copy(self)
         other.layout, other.test_layout = trial, test
         other._cache = {}

@@ -1,0 +1,372 @@
+"""Any scikit-fem form on RK bases at the speed of :class:`~skfem_rkpm.Assembler`.
+
+scikit-fem assembles a ``BilinearForm`` by calling it once per pair of local
+functions; an RK cell has 30-300 of them.  But a bilinear form is linear in
+the value and gradient components of ``u`` and of ``v``: at every point,
+
+    form(u, v, w) = Σ_(c,i) Σ_(d,j) v_(c,i) D_(c,i),(d,j)(x) u_(d,j),
+
+with ``u_(d,0)`` the value of component ``d`` and ``u_(d,j)`` its derivative
+``∂_j``.  Calling the form once per pair of unit component fields (one
+channel 1, the others 0, at every point) reads off its pointwise operator
+``D`` exactly: ``(c (1 + dim))²`` calls instead of one per pair of local
+functions.  :class:`~skfem_rkpm.Assembler` then integrates
+``Σ ψ_(c,i) D φ_(d,j)`` with batched matrix products, with the values
+stacked on the gradients as extra rows, and scatters into a cached pattern.
+A ``LinearForm`` is read the same way, with ``c (1 + dim)`` calls.
+
+:func:`asm` has the signature of ``skfem.asm``: bases are given trial first,
+lists of bases are summed, ``to=`` receives scikit-fem ``COOData``, keyword
+arguments become ``w`` (coefficient vectors are interpolated by the trial
+basis, as in scikit-fem).  Forms on scikit-fem bases only go to
+``skfem.asm`` unchanged.  An RK basis with a form that is not bilinear
+(linear) in the value and gradient of ``u`` and ``v`` (checked with one
+extra call on random combinations of the unit fields), a complex form, a
+trilinear form, or a scikit-fem partner basis whose fields carry more than
+values and gradients (``hess``, ``div``, composite elements) falls back to
+scikit-fem's loop with a :class:`SlowAssemblyWarning` that says why.
+
+This module knows bases only by their attributes: an RK basis is one with
+``element_nodes`` (see :func:`skfem_rkpm.assembly.layout`).
+"""
+
+import warnings
+import weakref
+from itertools import product
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import asm as skfem_asm
+from skfem.assembly.form import BilinearForm, Form, Functional, LinearForm
+from skfem.assembly.form.coo_data import COOData
+from skfem.assembly.form.form import FormExtraParams
+from skfem.element import DiscreteField, ElementVector
+
+from .assembly import Assembler, Layout, layout
+
+__all__ = ["asm", "pointwise_operator", "SlowAssemblyWarning"]
+
+#: relative tolerance of the check that a form is (bi)linear in its arguments
+LINEARITY_RTOL = 1e-9
+
+
+class SlowAssemblyWarning(UserWarning):
+    """A form on an RK basis is assembled by scikit-fem's loop over pairs of
+    local functions (correct, 100-1000 times slower)."""
+
+
+def _is_rk(basis):
+    return hasattr(basis, "element_nodes")
+
+
+def _as_form(form):
+    """Wrap a plain function as skfem.asm does, by its number of arguments."""
+    if not isinstance(form, Form) and callable(form):
+        nargs = form.__code__.co_argcount
+        form = [Functional, LinearForm, BilinearForm][nargs - 1](form)
+    return form
+
+
+def asm(form, *args, to=None, **kwargs):
+    """Assemble a scikit-fem form; a drop-in for ``skfem.asm``.
+
+    Parameters
+    ----------
+    form : BilinearForm, LinearForm, Functional or function
+        The form (a plain function is wrapped by its number of arguments).
+    *args : basis or list of bases
+        Trial basis, then test basis (bilinear forms); lists are assembled
+        for every combination and summed, as in ``skfem.asm``.
+    to : callable, optional
+        Receives the iterable of scikit-fem ``COOData`` of the combinations
+        (as in ``skfem.asm``); default: their sum as a CSR matrix, vector or
+        number.
+    **kwargs
+        Extra arguments of the form (``w``): numbers, ``DiscreteField`` or
+        coefficient vectors (interpolated by the first basis).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, ndarray or float
+        Like ``skfem.asm``.  Matrices assembled on RK bases keep structural
+        zeros (scikit-fem drops them).
+    """
+    form = _as_form(form)
+    lists = [a if isinstance(a, list) else [a] for a in args]
+    if not any(_is_rk(b) for bases in lists for b in bases):
+        return skfem_asm(form, *args, **({} if to is None else {"to": to}), **kwargs)
+    combos = list(zip(product(*(range(len(x)) for x in lists)), product(*lists)))
+    if to is not None:
+        return to(_coo(assemble(form, *bases, idx=idx, **kwargs), bases)
+                  for idx, bases in combos)
+    parts = [assemble(form, *bases, idx=idx, **kwargs) for idx, bases in combos]
+    return sum(parts[1:], parts[0])
+
+
+def _coo(result, bases):
+    """A result of :func:`assemble` as scikit-fem's ``COOData``."""
+    if sp.issparse(result):
+        A = result.tocoo()
+        return COOData(np.array([A.row, A.col]), A.data, A.shape, None)
+    result = np.asarray(result)
+    if result.ndim == 1:
+        return COOData(np.arange(len(result))[None], result, result.shape, None)
+    return COOData(np.array([]), np.array([result]), (), ())
+
+
+def assemble(form, ubasis, vbasis=None, **kwargs):
+    """One form on one trial (and test) basis; see :func:`asm`."""
+    form = _as_form(form)
+    if isinstance(form, BilinearForm):
+        vbasis = ubasis if vbasis is None else vbasis
+        reason = _why_slow(form, ubasis, vbasis)
+        if reason is None:
+            result = _bilinear(form, ubasis, vbasis, kwargs)
+            if not isinstance(result, str):
+                return result
+            reason = result
+        _warn_slow(reason, ubasis, vbasis)
+        return form.assemble(ubasis, vbasis, **kwargs)
+    if isinstance(form, LinearForm):
+        if vbasis is not None:
+            raise ValueError("a LinearForm takes one basis")
+        reason = _why_slow(form, ubasis)
+        if reason is None:
+            result = _linear(form, ubasis, kwargs)
+            if not isinstance(result, str):
+                return result
+            reason = result
+        _warn_slow(reason, ubasis)
+        return form.assemble(ubasis, **kwargs)
+    if isinstance(form, Functional):  # one call of the form: nothing to gain
+        return form.assemble(ubasis, **kwargs)
+    if any(_is_rk(b) for b in (ubasis, vbasis)):
+        _warn_slow(f"{type(form).__name__} has no fast path", ubasis, vbasis)
+    return form.assemble(ubasis, *(() if vbasis is None else (vbasis,)), **kwargs)
+
+
+def _warn_slow(reason, *bases):
+    if any(_is_rk(b) for b in bases if b is not None):
+        warnings.warn(f"assembled with scikit-fem's loop over pairs of local functions "
+                      f"(slow on RK bases): {reason}", SlowAssemblyWarning, stacklevel=4)
+
+
+def _why_slow(form, *bases):
+    """Why ``form`` on ``bases`` cannot take the fast path, or None."""
+    if np.dtype(form.dtype) != np.float64:
+        return f"the form has dtype {np.dtype(form.dtype)} (the fast path is real)"
+    if not any(_is_rk(b) for b in bases):
+        return "no RK basis"
+    nqp = [b.X.shape[-1] for b in bases]
+    if len(set(nqp)) > 1:
+        raise ValueError(
+            f"Quadrature mismatch: the trial basis has {nqp[0]} quadrature points per "
+            f"cell, the test basis {nqp[1]}; build both with the same quadrature "
+            "(an FEM Basis(..., intorder=k) next to RKBasis(..., intorder=k), or "
+            "quadrature=)")
+    for b in bases:
+        if not _is_rk(b):
+            fields = b.basis[0]
+            extra = [a for a in DiscreteField._extra_attrs[1:]
+                     if getattr(fields[0], a) is not None]
+            if len(fields) != 1 or extra:
+                return (f"the scikit-fem basis of {type(b.elem).__name__} has "
+                        + ("several fields" if len(fields) != 1 else
+                           "fields with " + ", ".join(extra)))
+            try:
+                layout(b)
+            except ValueError as err:
+                return str(err)
+    return None
+
+
+# -- channels: value and gradient components as rows of one table ----------
+
+def _unit_fields(ncomp, dim, shape):
+    """Unit fields of one basis: per channel ``(c, i)`` a ``DiscreteField`` whose
+    component ``c`` has value 1 (``i = 0``) or derivative ``∂_(i-1)`` 1 and
+    all else zero, on points of ``shape`` (nelems, nqp)."""
+    lead = (ncomp,) if ncomp > 1 else ()
+    fields = []
+    for c in range(ncomp):
+        for i in range(1 + dim):
+            value = np.zeros(lead + shape)
+            grad = np.zeros(lead + (dim,) + shape)
+            if i == 0:
+                value[(c,) * len(lead)] = 1.0
+            else:
+                grad[(c,) * len(lead) + (i - 1,)] = 1.0
+            fields.append(DiscreteField(value, grad))
+    return fields
+
+
+def _combination(fields, coefficients):
+    """Σ coefficients[k] fields[k] as a ``DiscreteField``."""
+    value = sum(a * np.asarray(f) for a, f in zip(coefficients, fields))
+    grad = sum(a * f.grad for a, f in zip(coefficients, fields))
+    return DiscreteField(value, grad)
+
+
+def _ncomp(basis):
+    if _is_rk(basis):
+        return basis.ncomp
+    return basis.elem.dim if isinstance(basis.elem, ElementVector) else 1
+
+
+def pointwise_operator(form, ubasis, vbasis=None, w=None):
+    """The pointwise operator ``D`` of a bilinear form (see the module docstring).
+
+    Parameters
+    ----------
+    form : BilinearForm
+    ubasis, vbasis : basis
+        Trial and test bases (``vbasis`` default ``ubasis``).
+    w : FormExtraParams, optional
+        The form's extra arguments; default the trial basis's parameters.
+
+    Returns
+    -------
+    ndarray, shape (c_v, 1 + dim, c_u, 1 + dim, nelems, nqp)
+        ``D[c, i, d, j]`` multiplies channel ``i`` of test component ``c``
+        (0: value, 1 + l: ``∂_l``) and channel ``j`` of trial component ``d``.
+    """
+    vbasis = ubasis if vbasis is None else vbasis
+    if w is None:
+        w = FormExtraParams(ubasis.default_parameters())
+    return _operator(form, ubasis, vbasis, w)[0]
+
+
+def _operator(form, ubasis, vbasis, w):
+    """``D`` of :func:`pointwise_operator` and the unit fields of u and v."""
+    shape = ubasis.dx.shape
+    dim = ubasis.mesh.dim()
+    cu, cv = _ncomp(ubasis), _ncomp(vbasis)
+    U, V = _unit_fields(cu, dim, shape), _unit_fields(cv, dim, shape)
+    D = np.empty((len(V), len(U)) + shape)
+    for (b, u), (a, v) in product(enumerate(U), enumerate(V)):
+        D[a, b] = _per_point(form.form(u, v, w), shape)
+    return D.reshape(cv, 1 + dim, cu, 1 + dim, *shape), U, V
+
+
+class _NotPerPoint(ValueError):
+    """A form's value is not one number per quadrature point."""
+
+
+def _per_point(value, shape):
+    """``value`` as one number per quadrature point, shape (nelems, nqp)."""
+    value = np.asarray(value)
+    if value.shape != shape and value.ndim != 0:
+        raise _NotPerPoint(
+            f"the form returns an array of shape {value.shape}, not one number per "
+            f"quadrature point {shape} (a vector or a sum over cells: e.g. dot() of "
+            "two scalar fields contracts the cells)")
+    return np.broadcast_to(value, shape)
+
+
+def _agrees(direct, D, coefficients):
+    """``direct`` (a call on combinations of unit fields with ``coefficients``,
+    test first) equals ``D`` (test channels x trial channels x points)
+    contracted with them, up to ``LINEARITY_RTOL`` of the largest term."""
+    expected, bound = D, np.abs(D)
+    for r in coefficients:  # contract the leading channel axis
+        expected = np.tensordot(r, expected, axes=(0, 0))
+        bound = np.tensordot(np.abs(r), bound, axes=(0, 0))
+    return np.all(np.abs(np.asarray(direct) - expected)
+                  <= LINEARITY_RTOL * bound.max(initial=0.0))
+
+
+def _random_combinations(fields, rng):
+    coefficients = rng.uniform(0.5, 1.5, len(fields))
+    return _combination(fields, coefficients), coefficients
+
+
+def _kept(D, axis):
+    """Channels (along ``axis`` of D (c_v, i, c_u, j, E, q)) not identically zero."""
+    other = tuple(k for k in range(D.ndim) if k != axis)
+    return np.flatnonzero(np.any(D != 0, axis=other))
+
+
+def _tangent(D):
+    """``D`` at one point if it is the same at every point, else ``D`` itself."""
+    first = D[..., :1, :1]
+    return D[..., 0, 0] if np.all(D == first) else D
+
+
+def _bilinear(form, ubasis, vbasis, kwargs):
+    """The fast path of a bilinear form, or the reason it cannot be taken."""
+    w = FormExtraParams({**ubasis.default_parameters(),
+                         **form._normalize_asm_kwargs(dict(kwargs), ubasis)})
+    try:
+        D, U, V = _operator(form, ubasis, vbasis, w)
+    except _NotPerPoint as err:
+        return str(err)
+    rng = np.random.default_rng(0)
+    (u, r), (v, s) = _random_combinations(U, rng), _random_combinations(V, rng)
+    if not _agrees(form.form(u, v, w), D.reshape(len(V), len(U), *D.shape[-2:]), (s, r)):
+        return "the form is not bilinear in the values and gradients of u and v"
+    i, j = _kept(D, 1), _kept(D, 3)
+    if len(i) == 0 or len(j) == 0:
+        return sp.csr_matrix((vbasis.N, ubasis.N))
+    D = np.ascontiguousarray(D[:, i][:, :, :, j])
+    Lu = layout(ubasis)
+    Lv = layout(vbasis) if vbasis is not ubasis else Lu
+    pattern = _pattern(ubasis, vbasis, Lu, Lv)
+    trial = _channel_layout(Lu, j, ubasis.dx)
+    test = trial if vbasis is ubasis and np.array_equal(i, j) else \
+        _channel_layout(Lv, i, ubasis.dx)
+    return pattern.with_layouts(trial, test).bilinear(_tangent(D))
+
+
+def _channel_layout(L, kept, dx):
+    """``L`` with the kept channels (0: values, 1 + l: ``∂_l``, the gradients
+    its forms see) as the rows of its gradient table."""
+    dim = L.test_grads.shape[0]
+    if np.array_equal(kept, np.arange(1, 1 + dim)):
+        table = L.test_grads  # gradients only: no copy
+    elif np.array_equal(kept, [0]):
+        table = L.values[None]
+    else:
+        table = np.concatenate([L.values[None], L.test_grads])[kept]
+    return Layout(L.element_nodes, L.values, table, table, dx, L.ncomp, L.nscalar)
+
+
+def _linear(form, vbasis, kwargs):
+    """The fast path of a linear form, or the reason it cannot be taken."""
+    w = FormExtraParams({**vbasis.default_parameters(),
+                         **form._normalize_asm_kwargs(dict(kwargs), vbasis)})
+    shape = vbasis.dx.shape
+    dim, cv = vbasis.mesh.dim(), _ncomp(vbasis)
+    V = _unit_fields(cv, dim, shape)
+    D = np.empty((len(V),) + shape)
+    try:
+        for a, v in enumerate(V):
+            D[a] = _per_point(form.form(v, w), shape)
+    except _NotPerPoint as err:
+        return str(err)
+    v, s = _random_combinations(V, np.random.default_rng(0))
+    if not _agrees(form.form(v, w), D, (s,)):
+        return "the form is not linear in the values and gradients of v"
+    D = D.reshape(cv, 1 + dim, *shape)
+    i = _kept(D, 1)
+    if len(i) == 0:
+        return np.zeros(vbasis.N)
+    test = _channel_layout(layout(vbasis), i, vbasis.dx)
+    assembler = Assembler(test)  # the pattern is not needed for vectors
+    return assembler.linear(D[:, i])
+
+
+# -- sparsity patterns, kept while the bases live ---------------------------
+
+_PATTERNS = weakref.WeakKeyDictionary()
+
+
+def _pattern(ubasis, vbasis, Lu, Lv):
+    """An :class:`Assembler` holding the pattern of (ubasis, vbasis), cached on
+    the test basis for as long as both bases live."""
+    cache = _PATTERNS.setdefault(vbasis, {})
+    ref, assembler = cache.get(id(ubasis), (None, None))
+    if ref is None or ref() is not ubasis:
+        same = (Lu.element_nodes is Lv.element_nodes and Lu.ncomp == Lv.ncomp)
+        assembler = Assembler(Lu) if same else Assembler(Lu, test=Lv)
+        cache[id(ubasis)] = (weakref.ref(ubasis), assembler)
+    return assembler

@@ -56,6 +56,7 @@ SUITE = {
                       ["--levels", "4", "8", "16", "--reference", "16", "32", "64",
                        "--figure", "{figures}/plastic_trade.png"], (3, 1)),
     "petsc_mpi": ([], ["--sizes", "50"], (10, 2)),
+    "form_assembly": ([], ["--no-skfem", "--repeat", "3"], (1.5, 0.5)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

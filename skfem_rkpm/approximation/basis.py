@@ -26,7 +26,7 @@ from .shape import ShapeTable, coordinates, rk_shape_functions
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
-INTEGRATION_SCHEMES = ("vci", "gauss")
+INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss")
 
 
 def _rows(table, start, stop):
@@ -229,13 +229,17 @@ class RKBasis(_RKBase):
         Circular/spherical or tensor-product supports.
     intorder : int
         Degree of the Gauss rule on each background cell.
-    integration : {"vci", "gauss"}
+    integration : {"vci", "vci_symmetric", "gauss"}
         ``"gauss"``: plain Gauss quadrature, the paper's scheme.
         ``"vci"``: variationally consistent test-function gradients (see
         :mod:`skfem_rkpm.approximation.integration`); ``basis.basis`` then holds the
         corrected test functions and ``basis.trial`` the exact ones, and
         ``asm(form, basis.trial, basis)`` is the consistent Petrov-Galerkin
-        matrix.
+        matrix (not symmetric).
+        ``"vci_symmetric"``: corrected gradients that also reproduce linear
+        fields, used for trial and test functions alike (``basis.trial`` is
+        the basis itself): symmetric matrices, patch test to round-off.
+        Order 1, not axisymmetric.
     nodes : ndarray, shape (dim, nnodes), optional
         Particle positions; default the mesh vertices.
     radius : float or ndarray, optional
@@ -318,11 +322,12 @@ class RKBasis(_RKBase):
         self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
             nodes.shape[0] if vector else 1), format="csr")
         test_grads = table.grads
-        if integration == "vci":
+        if integration in ("vci", "vci_symmetric"):
             test_grads = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
-                nodes, self.radius, order, kernel, support_shape, axisymmetric)
+                nodes, self.radius, order, kernel, support_shape, axisymmetric,
+                symmetric=integration == "vci_symmetric")
         self._setup(mesh, geometry, table, test_grads, nodes, vector)
 
     def _shape_table(self, x, nodes=None, gradients=True):
@@ -334,11 +339,13 @@ class RKBasis(_RKBase):
 
     @property
     def trial(self):
-        """The same basis with the exact (uncorrected) gradients.
+        """The same basis with the trial gradients: the exact (uncorrected)
+        ones for ``integration="vci"``.
 
-        With ``integration="gauss"`` this is the basis itself.
+        With ``integration="gauss"`` or ``"vci_symmetric"`` this is the basis
+        itself.
         """
-        if self.test_grads is self.table.grads:
+        if self.test_grads is self.table.grads or self.integration == "vci_symmetric":
             return self
         if getattr(self, "_trial", None) is None:
             trial = copy.copy(self)

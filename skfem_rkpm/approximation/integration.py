@@ -77,7 +77,7 @@ def _pair_monomials(table, x, nodes, scale, exps):
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                   nodes, radius, order, kernel="cubic", support="radial",
-                  axisymmetric=False):
+                  axisymmetric=False, symmetric=False):
     """Test-function gradients corrected for variational consistency.
 
     Parameters
@@ -99,6 +99,12 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         Impose the constraints in the axisymmetric measure ``R dR dZ``
         (``x[0]`` is the radius): ``∫ ∇̃Ψ p R = ∫_Γ Ψ p n R - ∫ Ψ ∇(p R)``,
         which makes homogeneous axisymmetric stress states exact.
+    symmetric : bool
+        Correct so that the corrected gradients also reproduce the
+        gradients of linear fields (:func:`_symmetric_correction`): then the
+        same corrected gradients serve trial and test functions, the
+        stiffness is symmetric and the linear patch test still passes.
+        Basis order 1, not axisymmetric.
 
     Returns
     -------
@@ -133,7 +139,49 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         A[:, ab] = np.bincount(cols, w * phi * ppT[:, ab], minlength=nnodes)
     A = A.reshape(nnodes, m, m)
 
-    # rhs_I,k,α = ∫_Γ Ψ_I p_α n_k - ∫_Ω Ψ_I ∂_k p_α - ∫_Ω ∂_k Ψ_I p_α
+    rhs = _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes,
+                          scale, exps, dp, p, axisymmetric)
+    covered = np.bincount(cols, minlength=nnodes)
+    det = np.linalg.det(A)
+    bad = np.flatnonzero((covered < m) | ~(np.abs(det) > 1e-14 * np.abs(A[:, 0, 0]) ** m))
+    if bad.size:
+        I = bad[0]
+        raise ValueError(
+            f"VCI: the support of particle {I} at {nodes[:, I]} contains "
+            f"{covered[I]} quadrature points, too few to correct its gradient "
+            f"({bad.size} particles affected); increase the support or the "
+            "quadrature order"
+        )
+    if symmetric:
+        if order != 1 or axisymmetric:
+            raise ValueError("symmetric VCI is built for basis order 1 in plane or 3D "
+                             f"problems (here order {order}"
+                             + (", axisymmetric" if axisymmetric else "")
+                             + "); use integration='vci'")
+        return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
+                                                   nodes, radius)
+    xi = _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale,
+                                exps)  # (nnodes, m, dim)
+    a = np.einsum("na,nak->kn", p, xi[cols])  # a_I(x_q) at the pairs
+    nq = table.npoints
+    shepard = phi / np.bincount(rows, phi, minlength=nq)[rows]
+    mean = np.stack([np.bincount(rows, shepard * a[k], minlength=nq)
+                     for k in range(dim)])  # ā(x_q) = Σ_J S_J a_J
+    return table.grads + phi[None, :] * (a - mean[:, rows])
+
+
+def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes, scale,
+                    exps, dp, p, axisymmetric):
+    """``r_I,k,α = ∫_Γ Ψ_I p_α n_k - ∫_Ω Ψ_I ∂_k p_α - ∫_Ω ∂_k Ψ_I p_α``, shape
+    (nnodes, dim, m): what the corrections must integrate to.
+
+    ``weights`` and ``wb`` are already multiplied by the radius if
+    ``axisymmetric`` (then ``-∫ Ψ_I p_α dR dZ`` is added to the radial row).
+    """
+    dim, nnodes = nodes.shape
+    m = len(exps)
+    rows, cols = table.rows, table.indices
+    w = weights[rows]
     rhs = np.zeros((nnodes, dim, m))
     brow, bcol = boundary_table.rows, boundary_table.indices
     pb, _ = _pair_monomials(boundary_table, xb, nodes, scale, exps)
@@ -151,25 +199,7 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         for a in range(m):
             rhs[:, 0, a] -= np.bincount(cols, w_plain * table.values * p[:, a],
                                         minlength=nnodes)
-    covered = np.bincount(cols, minlength=nnodes)
-    det = np.linalg.det(A)
-    bad = np.flatnonzero((covered < m) | ~(np.abs(det) > 1e-14 * np.abs(A[:, 0, 0]) ** m))
-    if bad.size:
-        I = bad[0]
-        raise ValueError(
-            f"VCI: the support of particle {I} at {nodes[:, I]} contains "
-            f"{covered[I]} quadrature points, too few to correct its gradient "
-            f"({bad.size} particles affected); increase the support or the "
-            "quadrature order"
-        )
-    xi = _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale,
-                                exps)  # (nnodes, m, dim)
-    a = np.einsum("na,nak->kn", p, xi[cols])  # a_I(x_q) at the pairs
-    nq = table.npoints
-    shepard = phi / np.bincount(rows, phi, minlength=nq)[rows]
-    mean = np.stack([np.bincount(rows, shepard * a[k], minlength=nq)
-                     for k in range(dim)])  # ā(x_q) = Σ_J S_J a_J
-    return table.grads + phi[None, :] * (a - mean[:, rows])
+    return rhs
 
 
 def _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale, exps):
@@ -217,3 +247,74 @@ def _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale, exps):
     x[free] = lu.solve(b[free])
     x[free] += lu.solve(b[free] - Mf @ x[free])  # one step of refinement
     return x.reshape(nnodes, m, dim)
+
+
+def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
+    """Gradient corrections that keep linear reproduction: symmetric VCI.
+
+    With ``P_J(x) = [1, (X_J - x)/s(x)]`` and ``G(x) = Σ_J φ_J P_J P_Jᵀ`` (the
+    moment matrix of the kernel, Eq. 3.17 with the same window), the
+    correction of particle ``I`` is the kernel-weighted residual of the
+    linear least-squares fit of the coefficients ``ξ_J`` around ``x``,
+
+        c_I(x) = φ_I(x) (ξ_I - P_I(x)ᵀ G(x)⁻¹ Σ_J P_J(x) φ_J(x) ξ_J),
+
+    so that ``Σ_I c_I p(X_I) = 0`` for every linear ``p``: the corrected
+    gradients ``∇Ψ_I + c_I`` still give the exact gradient of a linear
+    field from its nodal values, and serve as trial *and* test gradients
+    (a symmetric stiffness).  The first-order integration constraints
+    ``∫̂ c_I = r_I`` (:func:`_constraint_rhs`) become one symmetric system
+    ``M ξ = r``,
+
+        M = diag(∫̂ φ_I) - Bᵀ diag(w) B,   B[(q, α), J] = (L_q⁻¹ P_J φ_J)_α,
+
+    with ``G = L Lᵀ``; its null space holds the ``ξ`` linear in ``X`` on each
+    connected body (they give ``c = 0``), to which ``r`` is orthogonal (the
+    divergence theorem for linear fields, exact for the quadrature).  The
+    system is solved with the null space removed by multipliers.
+
+    Returns
+    -------
+    ndarray, shape (dim, npairs)
+    """
+    rows, cols = table.rows, table.indices
+    dim, nnodes = nodes.shape
+    nq, m = table.npoints, dim + 1
+    weight_sum = np.bincount(rows, phi, minlength=nq)
+    size = np.bincount(rows, phi * radius[cols], minlength=nq) / weight_sum
+    P = np.ones((len(rows), m))
+    P[:, 1:] = ((nodes[:, cols] - x[:, rows]) / size[rows]).T
+    G = np.empty((nq, m, m))
+    for a in range(m):
+        for b in range(a, m):
+            G[:, a, b] = G[:, b, a] = np.bincount(rows, phi * P[:, a] * P[:, b],
+                                                  minlength=nq)
+    Linv = np.linalg.inv(np.linalg.cholesky(G))  # G⁻¹ = Linvᵀ Linv
+    B_pairs = np.einsum("pab,pb->pa", Linv[rows], phi[:, None] * P)
+    B = sp.csr_matrix((B_pairs.ravel(), ((rows[:, None] * m + np.arange(m)).ravel(),
+                                         np.repeat(cols, m))), shape=(nq * m, nnodes))
+    M = (sp.diags(np.bincount(cols, weights[rows] * phi, minlength=nnodes))
+         - B.T @ sp.diags(np.repeat(weights, m)) @ B)
+
+    incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(nq, nnodes))
+    nbodies, body = connected_components(incidence.T @ incidence, directed=False)
+    null = np.zeros((nnodes, nbodies * m))
+    for b in range(nbodies):
+        members = body == b
+        X = nodes[:, members]
+        centre, extent = X.mean(axis=1, keepdims=True), max(np.ptp(X), 1e-300)
+        null[members, b * m] = 1.0
+        null[members, b * m + 1:(b + 1) * m] = ((X - centre) / extent).T
+    N = sp.csr_matrix(null)
+    K = sp.bmat([[M, N], [N.T, None]], format="csc")
+    rhs = np.vstack([r, np.zeros((nbodies * m, dim))])
+    lu = splu(K, permc_spec="MMD_AT_PLUS_A")
+    solution = lu.solve(rhs)
+    solution += lu.solve(rhs - K @ solution)  # one step of refinement
+    xi = solution[:nnodes]  # (nnodes, dim)
+
+    # t(x_q) = Σ_J P_J φ_J ξ_J, then c_I = φ_I (ξ_I - P_Iᵀ G⁻¹ t)
+    t = np.stack([np.bincount(rows, phi * P[:, a] * xi[cols, k], minlength=nq)
+                  for a in range(m) for k in range(dim)], axis=1).reshape(nq, m, dim)
+    fit = np.einsum("qba,qbc,qck->qak", Linv, Linv, t)  # G⁻¹ t, (nq, m, dim)
+    return (phi[:, None] * (xi[cols] - np.einsum("pa,pak->pk", P, fit[rows]))).T

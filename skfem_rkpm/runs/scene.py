@@ -89,7 +89,7 @@ SCHEMA = {
         "order": Key("int", 1, choices=(0, 1, 2), doc="rkpm: basis order"),
         "kernel": Key("str", "cubic", choices=("cubic", "quartic"), doc="rkpm: window"),
         "support_shape": Key("str", "radial", choices=("radial", "box"), doc="rkpm: support"),
-        "integration": Key("str", "vci", choices=("vci", "gauss"), doc="rkpm: integration"),
+        "integration": Key("str", "vci", choices=("vci", "vci_symmetric", "gauss"), doc="rkpm: integration"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),

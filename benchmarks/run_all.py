@@ -57,6 +57,8 @@ SUITE = {
                        "--figure", "{figures}/plastic_trade.png"], (3, 1)),
     "petsc_mpi": ([], ["--sizes", "50"], (10, 2)),
     "form_assembly": ([], ["--no-skfem", "--repeat", "3"], (1.5, 0.5)),
+    "vci_symmetry": ([], ["--levels", "4", "8", "--supports", "2", "--repeat", "1"],
+                     (6, 0.5)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

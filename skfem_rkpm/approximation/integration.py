@@ -270,8 +270,10 @@ def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
 
     with ``G = L Lᵀ``; its null space holds the ``ξ`` linear in ``X`` on each
     connected body (they give ``c = 0``), to which ``r`` is orthogonal (the
-    divergence theorem for linear fields, exact for the quadrature).  The
-    system is solved with the null space removed by multipliers.
+    divergence theorem for linear fields, exact for the quadrature).  ``ξ`` of
+    ``dim + 1`` particles spanning each body is set to zero and their
+    constraints, implied by the others, are dropped: the rest of ``M`` is
+    positive definite.
 
     Returns
     -------
@@ -290,7 +292,11 @@ def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
             G[:, a, b] = G[:, b, a] = np.bincount(rows, phi * P[:, a] * P[:, b],
                                                   minlength=nq)
     Linv = np.linalg.inv(np.linalg.cholesky(G))  # G⁻¹ = Linvᵀ Linv
-    B_pairs = np.einsum("pab,pb->pa", Linv[rows], phi[:, None] * P)
+    phiP = phi[:, None] * P
+    B_pairs = np.zeros((len(rows), m))
+    for a in range(m):  # (L⁻¹ φ P)_a without an (npairs, m, m) gather; L⁻¹ is lower
+        for b in range(a + 1):
+            B_pairs[:, a] += Linv[:, a, b][rows] * phiP[:, b]
     B = sp.csr_matrix((B_pairs.ravel(), ((rows[:, None] * m + np.arange(m)).ravel(),
                                          np.repeat(cols, m))), shape=(nq * m, nnodes))
     M = (sp.diags(np.bincount(cols, weights[rows] * phi, minlength=nnodes))
@@ -298,23 +304,43 @@ def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
 
     incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(nq, nnodes))
     nbodies, body = connected_components(incidence.T @ incidence, directed=False)
-    null = np.zeros((nnodes, nbodies * m))
-    for b in range(nbodies):
-        members = body == b
-        X = nodes[:, members]
-        centre, extent = X.mean(axis=1, keepdims=True), max(np.ptp(X), 1e-300)
-        null[members, b * m] = 1.0
-        null[members, b * m + 1:(b + 1) * m] = ((X - centre) / extent).T
-    N = sp.csr_matrix(null)
-    K = sp.bmat([[M, N], [N.T, None]], format="csc")
-    rhs = np.vstack([r, np.zeros((nbodies * m, dim))])
-    lu = splu(K, permc_spec="MMD_AT_PLUS_A")
-    solution = lu.solve(rhs)
-    solution += lu.solve(rhs - K @ solution)  # one step of refinement
-    xi = solution[:nnodes]  # (nnodes, dim)
+    free = np.ones(nnodes, dtype=bool)
+    free[_affine_frame(nodes, body, nbodies)] = False
+    Mf = M[free][:, free].tocsc()
+    lu = splu(Mf, permc_spec="MMD_AT_PLUS_A")
+    xi = np.zeros((nnodes, dim))
+    xi[free] = lu.solve(r[free])
+    xi[free] += lu.solve(r[free] - Mf @ xi[free])  # one step of refinement
 
     # t(x_q) = Σ_J P_J φ_J ξ_J, then c_I = φ_I (ξ_I - P_Iᵀ G⁻¹ t)
     t = np.stack([np.bincount(rows, phi * P[:, a] * xi[cols, k], minlength=nq)
                   for a in range(m) for k in range(dim)], axis=1).reshape(nq, m, dim)
     fit = np.einsum("qba,qbc,qck->qak", Linv, Linv, t)  # G⁻¹ t, (nq, m, dim)
-    return (phi[:, None] * (xi[cols] - np.einsum("pa,pak->pk", P, fit[rows]))).T
+    correction = xi[cols].T.copy()  # (dim, npairs)
+    for a in range(m):
+        correction -= P[:, a] * fit[rows, a, :].T
+    return phi * correction
+
+
+def _affine_frame(nodes, body, nbodies):
+    """``dim + 1`` particles per body at which no nonzero linear function
+    vanishes: the first particle, the farthest from it, then each time the
+    one farthest from the line (plane) through those chosen."""
+    dim = nodes.shape[0]
+    chosen = []
+    for b in range(nbodies):
+        members = np.flatnonzero(body == b)
+        if len(members) <= dim + 1:
+            chosen.extend(members)
+            continue
+        X = nodes[:, members]
+        frame = [0]
+        for _ in range(dim):
+            base = X[:, frame[0]][:, None]
+            rel = X - base
+            if len(frame) > 1:  # distance from the span of the chosen edges
+                Q, _ = np.linalg.qr(X[:, frame[1:]] - base)
+                rel = rel - Q @ (Q.T @ rel)
+            frame.append(int(np.argmax(np.sum(rel ** 2, axis=0))))
+        chosen.extend(members[frame])
+    return np.array(chosen, dtype=np.int64)

@@ -20,6 +20,7 @@ import scipy.sparse as sp
 from skfem.assembly.basis import AbstractBasis
 from skfem.element import DiscreteField
 
+from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from ..meshes import local_spacing
 from .shape import ShapeTable, coordinates, rk_shape_functions
@@ -430,8 +431,10 @@ class RKBasis(_RKBase):
 
         Returns
         -------
-        ndarray
-            Sorted dof numbers, interleaved ``dim*I + c``.
+        RKDofs
+            Sorted dof numbers, interleaved ``dim*I + c``: an integer array
+            with scikit-fem's ``DofsView`` methods (``.all()``,
+            ``.nodal["u^1"]``, ``.keep``, ``.drop``).
         """
         if nodes is None:
             nodes = self._boundary_particles(facets)
@@ -442,7 +445,7 @@ class RKBasis(_RKBase):
             raise ValueError(f"component {bad[0]} does not exist: the basis "
                              f"has {self.ncomp} component(s)")
         dofs = (self.ncomp * nodes[:, None] + np.asarray(list(comps))[None, :])
-        return np.unique(dofs.ravel())
+        return RKDofs(np.unique(dofs.ravel()), self.ncomp)
 
     def _boundary_particles(self, facets):
         if callable(facets):

@@ -33,6 +33,9 @@ BLOCK_ENTRIES = 2**18
 #: the scatter map finds matrix positions in a dense (test x trial particle)
 #: table of positions if it has at most this many entries, else by binary search
 DENSE_POSITIONS = 2**24
+#: a scatter map with at most this many local entries is stored even when
+#: the dense table of positions could find them again (faster repeated sums)
+STORED_ENTRIES = 2**22
 #: local matrix entries summed per call of bincount when the places of local
 #: entries are looked up block by block (dense table of positions)
 SCATTER_ENTRIES = 2**21
@@ -149,9 +152,12 @@ class Assembler:
         ``basis`` as columns.  Only :meth:`bilinear`, :meth:`local_bilinear`,
         :meth:`matrix`, :meth:`linear` and :meth:`cell_vectors` (test side)
         serve a rectangular pair.
+    pattern : bool
+        Build the sparsity pattern now (default); ``False`` defers it to the
+        first matrix, e.g. for an assembler of vectors only.
     """
 
-    def __init__(self, basis, axisymmetric=False, test=None):
+    def __init__(self, basis, axisymmetric=False, test=None, pattern=True):
         self.layout = L = layout(basis)
         if axisymmetric:
             radius = np.asarray(basis.global_coordinates())[0]
@@ -167,6 +173,8 @@ class Assembler:
                              + np.arange(c)[None, :, None]).reshape(nloc * c, nelems)
         self._cache = {}
         self._pattern = None
+        if pattern:
+            self._build_pattern()
 
     @property
     def square(self):
@@ -198,13 +206,14 @@ class Assembler:
         """CSR pattern of the vector matrix and how local entries find their place.
 
         The scalar pattern (test particle x trial particle) comes from a
-        sparse product of the cell-particle incidences.  If the scalar matrix
-        has at most ``DENSE_POSITIONS`` entries, a dense table of their
-        positions is kept and the places of local entries are looked up
-        block by block of cells when a matrix is summed (nothing as large
-        as the local matrices is stored); otherwise the places of all local
-        entries are found once by binary search in the sorted scalar keys
-        and kept (the scatter map).
+        sparse product of the cell-particle incidences.  The places of the
+        local entries in the CSR data (the scatter map) are found in a dense
+        table of positions if the scalar matrix has at most
+        ``DENSE_POSITIONS`` entries, else by binary search in the sorted
+        scalar keys.  The map is kept, except when the table is used and
+        there are more than ``STORED_ENTRIES`` local entries: then the
+        places are looked up block by block of cells each time a matrix is
+        summed, and nothing as large as the local matrices is stored.
         """
         U, V = self.layout, self.test_layout
         cu, cv = U.ncomp, V.ncomp
@@ -225,9 +234,12 @@ class Assembler:
         self._nodes_u = np.ascontiguousarray(U.element_nodes.T)
         self._length, self._start = np.diff(indptr_s), indptr_s[:-1]
         self._table = scatter = None
+        entries = nelems * self._nodes_v.shape[1] * self._nodes_u.shape[1] * cu * cv
         if nu * nv <= DENSE_POSITIONS:
             self._table = np.empty((nv, nu), dtype=np.intp)
             self._table[rows_s, cols_s] = np.arange(len(cols_s))
+            if entries <= STORED_ENTRIES:  # small: keep the scatter map too
+                scatter = self._table_places(slice(None))
         else:
             keys = rows_s.astype(np.int64) * nu + cols_s
             position = np.searchsorted(keys, (self._nodes_v[:, :, None].astype(np.int64)
@@ -272,6 +284,10 @@ class Assembler:
         if scatter is not None:
             nelems = self.layout.element_nodes.shape[1]
             return scatter.reshape(nelems, -1)[s].reshape(-1)
+        return self._table_places(s)
+
+    def _table_places(self, s):
+        """:meth:`_places` looked up in the dense table of positions."""
         flat = self._nodes_v[s][:, :, None] * self._table.shape[1]
         position = np.take(self._table, flat + self._nodes_u[s][:, None, :])
         return self._expand(position, s).reshape(-1)

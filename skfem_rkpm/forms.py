@@ -308,13 +308,17 @@ def _bilinear(form, ubasis, vbasis, kwargs):
     if len(i) == 0 or len(j) == 0:
         return sp.csr_matrix((vbasis.N, ubasis.N))
     D = np.ascontiguousarray(D[:, i][:, :, :, j])
-    Lu = layout(ubasis)
-    Lv = layout(vbasis) if vbasis is not ubasis else Lu
-    pattern = _pattern(ubasis, vbasis, Lu, Lv)
-    trial = _channel_layout(Lu, j, ubasis.dx)
-    test = trial if vbasis is ubasis and np.array_equal(i, j) else \
-        _channel_layout(Lv, i, ubasis.dx)
-    return pattern.with_layouts(trial, test).bilinear(_tangent(D))
+    pattern, Lu, Lv = _cached_pattern(ubasis, vbasis)
+    # one assembler per set of channels, kept with the pattern: it keeps its
+    # tables in the layouts of the batched products between calls
+    by_channels = pattern.__dict__.setdefault("_by_channels", {})
+    assembler = by_channels.get((tuple(i), tuple(j)))
+    if assembler is None:
+        trial = _channel_layout(Lu, j, ubasis.dx)
+        test = trial if vbasis is ubasis and np.array_equal(i, j) else \
+            _channel_layout(Lv, i, ubasis.dx)
+        assembler = by_channels[tuple(i), tuple(j)] = pattern.with_layouts(trial, test)
+    return assembler.bilinear(_tangent(D))
 
 
 def _channel_layout(L, kept, dx):
@@ -351,7 +355,7 @@ def _linear(form, vbasis, kwargs):
     if len(i) == 0:
         return np.zeros(vbasis.N)
     test = _channel_layout(layout(vbasis), i, vbasis.dx)
-    assembler = Assembler(test)  # the pattern is not needed for vectors
+    assembler = Assembler(test, pattern=False)  # vectors need no sparsity pattern
     return assembler.linear(D[:, i])
 
 
@@ -360,13 +364,15 @@ def _linear(form, vbasis, kwargs):
 _PATTERNS = weakref.WeakKeyDictionary()
 
 
-def _pattern(ubasis, vbasis, Lu, Lv):
-    """An :class:`Assembler` holding the pattern of (ubasis, vbasis), cached on
-    the test basis for as long as both bases live."""
+def _cached_pattern(ubasis, vbasis):
+    """``(assembler, trial layout, test layout)`` of the pair, built once and
+    kept on the test basis for as long as both bases live."""
     cache = _PATTERNS.setdefault(vbasis, {})
-    ref, assembler = cache.get(id(ubasis), (None, None))
-    if ref is None or ref() is not ubasis:
-        same = (Lu.element_nodes is Lv.element_nodes and Lu.ncomp == Lv.ncomp)
+    entry = cache.get(id(ubasis))
+    if entry is None or entry[0]() is not ubasis:
+        Lu = layout(ubasis)
+        Lv = layout(vbasis) if vbasis is not ubasis else Lu
+        same = Lu.element_nodes is Lv.element_nodes and Lu.ncomp == Lv.ncomp
         assembler = Assembler(Lu) if same else Assembler(Lu, test=Lv)
-        cache[id(ubasis)] = (weakref.ref(ubasis), assembler)
-    return assembler
+        entry = cache[id(ubasis)] = (weakref.ref(ubasis), assembler, Lu, Lv)
+    return entry[1:]

@@ -249,3 +249,15 @@ def test_rectangular_assembler_refuses_square_only_operations(vector, scalar):
     A = Assembler(vector, test=scalar)
     with pytest.raises(ValueError, match="one basis"):
         A.mass()
+
+
+def test_cached_patterns_serve_each_pair_of_bases_its_own_gradients(quads):
+    """Repeated calls on the pairs (trial, test), (test, test), (trial, trial)
+    of one VCI basis reuse cached patterns but keep each basis's gradients."""
+    basis = RKBasis(quads)
+    pairs = [(basis.trial, basis), (basis, basis), (basis.trial, basis.trial),
+             (basis, basis.trial)]
+    expected = [skfem.asm(laplace, *p) for p in pairs]
+    for _ in range(2):
+        for pair, K in zip(pairs, expected):
+            assert_same(fast(laplace, *pair), K)

@@ -185,18 +185,21 @@ def _why_slow(form, *bases):
 def _unit_fields(ncomp, dim, shape):
     """Unit fields of one basis: per channel ``(c, i)`` a ``DiscreteField`` whose
     component ``c`` has value 1 (``i = 0``) or derivative ``∂_(i-1)`` 1 and
-    all else zero, on points of ``shape`` (nelems, nqp)."""
+    all else zero, on points of ``shape`` (nelems, nqp).  The arrays are
+    read-only broadcast views: they take no memory per point."""
     lead = (ncomp,) if ncomp > 1 else ()
+    ones = (1,) * len(shape)
     fields = []
     for c in range(ncomp):
         for i in range(1 + dim):
-            value = np.zeros(lead + shape)
-            grad = np.zeros(lead + (dim,) + shape)
+            value = np.zeros(lead + ones)
+            grad = np.zeros(lead + (dim,) + ones)
             if i == 0:
                 value[(c,) * len(lead)] = 1.0
             else:
                 grad[(c,) * len(lead) + (i - 1,)] = 1.0
-            fields.append(DiscreteField(value, grad))
+            fields.append(DiscreteField(np.broadcast_to(value, lead + shape),
+                                        np.broadcast_to(grad, lead + (dim,) + shape)))
     return fields
 
 

@@ -11,7 +11,10 @@ functions enter through their gradients,
 the mass-type form ``∫ Ñ_a s N_b``.  The :class:`Assembler` reads any basis
 as per-cell scalar local functions, computes all local matrices with
 ``einsum`` and batched matrix products, and scatters them into a CSR matrix
-whose sparsity pattern and scatter map are computed once.
+whose sparsity pattern and scatter map are computed once.  Trial and test
+functions may come from different bases on the same cells (``test=``), and
+the "gradient" rows may be any table of the functions: :mod:`skfem_rkpm.forms`
+stacks values on gradients to assemble any scikit-fem form this way.
 """
 
 import copy

@@ -97,13 +97,13 @@ def asm(form, *args, to=None, **kwargs):
         return skfem_asm(form, *args, **({} if to is None else {"to": to}), **kwargs)
     combos = list(zip(product(*(range(len(x)) for x in lists)), product(*lists)))
     if to is not None:
-        return to(_coo(assemble(form, *bases, idx=idx, **kwargs), bases)
+        return to(_coo(assemble(form, *bases, idx=idx, **kwargs))
                   for idx, bases in combos)
     parts = [assemble(form, *bases, idx=idx, **kwargs) for idx, bases in combos]
     return sum(parts[1:], parts[0])
 
 
-def _coo(result, bases):
+def _coo(result):
     """A result of :func:`assemble` as scikit-fem's ``COOData``."""
     if sp.issparse(result):
         A = result.tocoo()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import skfem
 from skfem import (Basis, BilinearForm, ElementQuad0, ElementQuad1, ElementTetP1,
-                   ElementTriP1, ElementVector, FacetBasis, Functional, LinearForm,
+                   ElementTriP1, ElementVector, Functional, LinearForm,
                    MeshQuad, MeshTet, MeshTri)
 from skfem.helpers import dot, grad
 from skfem.models import laplace, linear_elasticity, mass, unit_load, vector_laplace

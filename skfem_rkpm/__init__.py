@@ -1,7 +1,7 @@
 """skfem-rkpm: the Lagrangian reproducing kernel particle method on scikit-fem."""
 
 from .assembly import Assembler, isotropic_tangent, layout
-from .forms import SlowAssemblyWarning, asm
+from .forms import CorrectedTrialWarning, SlowAssemblyWarning, asm
 from .approximation.basis import RKBasis, RKFacetBasis
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
@@ -13,6 +13,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Assembler",
+    "CorrectedTrialWarning",
     "RKBasis",
     "RKFacetBasis",
     "ShapeTable",

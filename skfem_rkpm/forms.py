@@ -24,7 +24,9 @@ basis, as in scikit-fem).  Forms on scikit-fem bases only go to
 extra call on random combinations of the unit fields), a complex form, a
 trilinear form, or a scikit-fem partner basis whose fields carry more than
 values and gradients (``hess``, ``div``, composite elements) falls back to
-scikit-fem's loop with a :class:`SlowAssemblyWarning` that says why.
+scikit-fem's loop with a :class:`SlowAssemblyWarning` that says why.  A VCI
+basis given as the trial basis of a form that reads trial gradients (where
+``basis.trial`` was meant) gets a :class:`CorrectedTrialWarning`.
 
 This module knows bases only by their attributes: an RK basis is one with
 ``element_nodes`` (see :func:`skfem_rkpm.assembly.layout`).
@@ -44,7 +46,7 @@ from skfem.element import DiscreteField, ElementVector
 
 from .assembly import Assembler, Layout, layout
 
-__all__ = ["asm", "pointwise_operator", "SlowAssemblyWarning"]
+__all__ = ["asm", "pointwise_operator", "SlowAssemblyWarning", "CorrectedTrialWarning"]
 
 #: relative tolerance of the check that a form is (bi)linear in its arguments
 LINEARITY_RTOL = 1e-9
@@ -53,6 +55,12 @@ LINEARITY_RTOL = 1e-9
 class SlowAssemblyWarning(UserWarning):
     """A form on an RK basis is assembled by scikit-fem's loop over pairs of
     local functions (correct, 100-1000 times slower)."""
+
+
+class CorrectedTrialWarning(UserWarning):
+    """The trial basis of a bilinear form carries VCI-corrected *test*
+    gradients: the matrix is not the consistent Petrov-Galerkin one and the
+    patch test fails."""
 
 
 def _is_rk(basis):
@@ -310,6 +318,14 @@ def _bilinear(form, ubasis, vbasis, kwargs):
     i, j = _kept(D, 1), _kept(D, 3)
     if len(i) == 0 or len(j) == 0:
         return sp.csr_matrix((vbasis.N, ubasis.N))
+    if np.any(j > 0) and _is_rk(ubasis) and getattr(ubasis, "trial", ubasis) is not ubasis:
+        warnings.warn(
+            "the trial basis carries the VCI-corrected test gradients (integration="
+            f"{getattr(ubasis, 'integration', 'vci')!r}) and the form uses trial "
+            "gradients: the matrix is not the consistent one and fails the patch test; "
+            "pass basis.trial as trial basis, asm(form, basis.trial, basis), or build "
+            "the basis with integration='vci_symmetric'", CorrectedTrialWarning,
+            stacklevel=4)
     D = np.ascontiguousarray(D[:, i][:, :, :, j])
     pattern, Lu, Lv = _cached_pattern(ubasis, vbasis)
     # one assembler per set of channels, kept with the pattern: it keeps its

@@ -22,9 +22,14 @@ from skfem.models.general import curluv, divu, rot, vrot
 import skfem_rkpm
 import skfem_rkpm.assembly as assembly
 from skfem_rkpm import Assembler, RKBasis
-from skfem_rkpm.forms import SlowAssemblyWarning, asm, pointwise_operator
+from skfem_rkpm.forms import (CorrectedTrialWarning, SlowAssemblyWarning, asm,
+                              pointwise_operator)
 
 RTOL = 1e-12
+
+# the comparisons with skfem.asm assemble (basis, basis) pairs of VCI bases on
+# purpose; test_vci_basis_as_trial_basis_is_loud checks the warning itself
+pytestmark = pytest.mark.filterwarnings("ignore::skfem_rkpm.forms.CorrectedTrialWarning")
 
 
 def dense(A):
@@ -262,3 +267,18 @@ def test_cached_patterns_serve_each_pair_of_bases_its_own_gradients(quads):
     for _ in range(2):
         for pair, K in zip(pairs, expected):
             assert_same(fast(laplace, *pair), K)
+
+
+def test_vci_basis_as_trial_basis_is_loud(scalar, vector):
+    """asm(form, basis) on a VCI basis uses corrected gradients on both sides:
+    a warning names the fix; mass-type forms and basis.trial stay quiet."""
+    with pytest.warns(CorrectedTrialWarning, match=r"asm\(form, basis.trial, basis\)"):
+        asm(laplace, scalar)
+    with pytest.warns(CorrectedTrialWarning):
+        asm(linear_elasticity(1.0, 1.0), vector, vector.trial)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        asm(mass, scalar)
+        asm(laplace, scalar.trial, scalar)
+        asm(laplace, RKBasis(scalar.mesh, integration="vci_symmetric"))
+        asm(laplace, RKBasis(scalar.mesh, integration="gauss"))

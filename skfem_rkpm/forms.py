@@ -387,6 +387,8 @@ def _cached_pattern(ubasis, vbasis):
     """``(assembler, trial layout, test layout)`` of the pair, built once and
     kept on the test basis for as long as both bases live."""
     cache = _PATTERNS.setdefault(vbasis, {})
+    for key in [k for k, e in cache.items() if e[0]() is None]:
+        del cache[key]  # trial bases that are gone: free their tables
     entry = cache.get(id(ubasis))
     if entry is None or entry[0]() is not ubasis:
         Lu = layout(ubasis)

@@ -282,3 +282,17 @@ def test_vci_basis_as_trial_basis_is_loud(scalar, vector):
         asm(laplace, scalar.trial, scalar)
         asm(laplace, RKBasis(scalar.mesh, integration="vci_symmetric"))
         asm(laplace, RKBasis(scalar.mesh, integration="gauss"))
+
+
+def test_patterns_of_trial_bases_that_are_gone_are_freed(quads, scalar):
+    import gc
+
+    from skfem_rkpm.forms import _PATTERNS
+
+    for _ in range(3):
+        fem = Basis(quads, ElementQuad1(), intorder=scalar.intorder)
+        fast(mass, fem, scalar)
+        del fem
+        gc.collect()
+    fast(mass, scalar)
+    assert all(entry[0]() is not None for entry in _PATTERNS[scalar].values())

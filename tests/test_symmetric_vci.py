@@ -143,3 +143,24 @@ def test_patch_test_on_two_separate_bodies(options):
     d = skfem_rkpm.solve(K, skfem_rkpm.asm(flux, basis.boundary()), basis,
                          D=basis.get_dofs(), x=1.0 + g @ basis.nodes)
     assert np.abs(basis.interpolate(d).grad - g[:, None, None]).max() < 1e-10
+
+
+def test_elasticity_patch_test_3d():
+    """A linear displacement field on tetrahedra: symmetric stiffness, the
+    field reproduced to round-off with tractions on the whole boundary."""
+    basis = RKBasis(MeshTet().refined(1), vector=True, integration="vci_symmetric")
+    G = np.array([[0.01, 0.02, -0.01], [-0.03, 0.015, 0.02], [0.005, -0.01, 0.01]])
+    eps = 0.5 * (G + G.T)
+    sigma = LAM * np.trace(eps) * np.eye(3) + 2 * MU * eps
+
+    @LinearForm
+    def traction(v, w):
+        return dot(np.einsum("ij,j...->i...", sigma, w.n), v)
+
+    K = skfem_rkpm.asm(linear_elasticity(LAM, MU), basis)
+    assert asymmetry(K) < 1e-14
+    D = basis.get_dofs()
+    exact = (G @ basis.nodes + np.array([[0.1], [-0.2], [0.3]])).T.ravel()
+    d = skfem_rkpm.solve(K, skfem_rkpm.asm(traction, basis.boundary()), basis,
+                         D=D, x=exact[D])
+    assert np.abs(basis.interpolate(d).grad - G[:, :, None, None]).max() < 1e-10

@@ -121,7 +121,7 @@ def models(args):
             ("linear_elasticity", linear_elasticity(lam, mu), (v.trial, v),
              lambda: A_v.bilinear(isotropic_tangent(lam, mu, dim))),
             ("divu", divu, (v.trial, s), None),
-            ("curluv", curluv, (s, v) if dim == 2 else (v.trial, v), None),
+            ("curluv", curluv, (s.trial, v) if dim == 2 else (v.trial, v), None),
             ("unit_load", unit_load, (s,), None),
             ("rot", rot, (s,) if dim == 2 else (v,), None),
             ("vrot", vrot, (v,) if dim == 2 else (v,), None),
@@ -135,7 +135,7 @@ def models(args):
                 kwargs = {"w": ws if dim == 2 else wv}
             skfem_rkpm.asm(form, *bases, **kwargs)  # pattern cached
             t_asm, M = timed(lambda: skfem_rkpm.asm(form, *bases, **kwargs), args.repeat)
-            names = ", ".join("v" if b is v else "v.trial" if b is v.trial else
+            names = ", ".join("v.trial" if b is v.trial else "v" if b is v else
                               "s.trial" if b is s.trial else "s" for b in bases)
             if dedicated is not None:
                 t_ref, M_ref = timed(dedicated, args.repeat)

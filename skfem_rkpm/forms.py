@@ -103,11 +103,11 @@ def asm(form, *args, to=None, **kwargs):
     lists = [a if isinstance(a, list) else [a] for a in args]
     if not any(_is_rk(b) for bases in lists for b in bases):
         return skfem_asm(form, *args, **({} if to is None else {"to": to}), **kwargs)
-    combos = list(zip(product(*(range(len(x)) for x in lists)), product(*lists)))
+    parts = []
+    for idx, bases in zip(product(*(range(len(x)) for x in lists)), product(*lists)):
+        parts.append(assemble(form, *bases, idx=idx, **kwargs))  # warnings: stacklevel 4
     if to is not None:
-        return to(_coo(assemble(form, *bases, idx=idx, **kwargs))
-                  for idx, bases in combos)
-    parts = [assemble(form, *bases, idx=idx, **kwargs) for idx, bases in combos]
+        return to(iter([_coo(part) for part in parts]))
     return sum(parts[1:], parts[0])
 
 
@@ -244,19 +244,75 @@ def pointwise_operator(form, ubasis, vbasis=None, w=None):
     vbasis = ubasis if vbasis is None else vbasis
     if w is None:
         w = FormExtraParams(ubasis.default_parameters())
-    return _operator(form, ubasis, vbasis, w)[0]
+    D = _operator(form, ubasis, vbasis, w)
+    k = 1 + ubasis.mesh.dim()
+    full = D.dense()
+    if full.ndim == 2:  # the same at every point
+        full = np.broadcast_to(full[..., None, None], full.shape + D.shape).copy()
+    return full.reshape(_ncomp(vbasis), k, _ncomp(ubasis), k, *D.shape)
+
+
+class _Operator:
+    """A pointwise operator kept compactly: ``constant`` (test channels x trial
+    channels) holds the entries that are the same at every point (zero
+    included), ``varying`` the others as arrays (nelems, nqp) by entry.
+    ``U``, ``V``: the unit fields of the trial and test basis."""
+
+    def __init__(self, constant, varying, shape, U, V):
+        self.constant, self.varying, self.shape = constant, varying, shape
+        self.U, self.V = U, V
+
+    def nonzero(self):
+        """Entries not identically zero, (test channels, trial channels)."""
+        out = self.constant != 0
+        for a, b in self.varying:
+            out[a, b] = True
+        return out
+
+    def dense(self, rows=None, cols=None):
+        """The entries of ``rows`` x ``cols`` (default all) at every point,
+        or at one point if none of them varies."""
+        rows = np.arange(self.constant.shape[0]) if rows is None else rows
+        cols = np.arange(self.constant.shape[1]) if cols is None else cols
+        constant = self.constant[np.ix_(rows, cols)]
+        where = {(a, b): v for (a, b), v in self.varying.items()
+                 if a in set(rows) and b in set(cols)}
+        if not where:
+            return constant
+        out = np.empty(constant.shape + self.shape)
+        out[...] = constant[..., None, None]
+        row_of = {a: n for n, a in enumerate(rows)}
+        col_of = {b: n for n, b in enumerate(cols)}
+        for (a, b), v in where.items():
+            out[row_of[a], col_of[b]] = v
+        return out
+
+    def contracted(self, s, r):
+        """``Σ_ab s_a D_ab r_b`` and the same sum of absolute values, per point."""
+        value = np.full(self.shape, s @ self.constant @ r)
+        bound = np.full(self.shape, np.abs(s) @ np.abs(self.constant) @ np.abs(r))
+        for (a, b), v in self.varying.items():
+            value += s[a] * r[b] * v
+            bound += abs(s[a] * r[b]) * np.abs(v)
+        return value, bound
 
 
 def _operator(form, ubasis, vbasis, w):
-    """``D`` of :func:`pointwise_operator` and the unit fields of u and v."""
+    """The pointwise operator of ``form``, compactly (:class:`_Operator`): one
+    call of the form per pair of unit fields, only varying entries stored."""
     shape = ubasis.dx.shape
     dim = ubasis.mesh.dim()
-    cu, cv = _ncomp(ubasis), _ncomp(vbasis)
-    U, V = _unit_fields(cu, dim, shape), _unit_fields(cv, dim, shape)
-    D = np.empty((len(V), len(U)) + shape)
+    U, V = _unit_fields(_ncomp(ubasis), dim, shape), _unit_fields(_ncomp(vbasis), dim, shape)
+    constant = np.zeros((len(V), len(U)))
+    varying = {}
     for (b, u), (a, v) in product(enumerate(U), enumerate(V)):
-        D[a, b] = _per_point(form.form(u, v, w), shape)
-    return D.reshape(cv, 1 + dim, cu, 1 + dim, *shape), U, V
+        value = _per_point(form.form(u, v, w), shape)
+        first = value.flat[0]
+        if np.all(value == first):
+            constant[a, b] = first
+        else:
+            varying[a, b] = np.array(value, dtype=float)
+    return _Operator(constant, varying, shape, U, V)
 
 
 class _NotPerPoint(ValueError):
@@ -291,31 +347,25 @@ def _random_combinations(fields, rng):
     return _combination(fields, coefficients), coefficients
 
 
-def _kept(D, axis):
-    """Channels (along ``axis`` of D (c_v, i, c_u, j, E, q)) not identically zero."""
-    other = tuple(k for k in range(D.ndim) if k != axis)
-    return np.flatnonzero(np.any(D != 0, axis=other))
-
-
-def _tangent(D):
-    """``D`` at one point if it is the same at every point, else ``D`` itself."""
-    first = D[..., :1, :1]
-    return D[..., 0, 0] if np.all(D == first) else D
-
-
 def _bilinear(form, ubasis, vbasis, kwargs):
     """The fast path of a bilinear form, or the reason it cannot be taken."""
     w = FormExtraParams({**ubasis.default_parameters(),
                          **form._normalize_asm_kwargs(dict(kwargs), ubasis)})
     try:
-        D, U, V = _operator(form, ubasis, vbasis, w)
+        D = _operator(form, ubasis, vbasis, w)
     except _NotPerPoint as err:
         return str(err)
     rng = np.random.default_rng(0)
-    (u, r), (v, s) = _random_combinations(U, rng), _random_combinations(V, rng)
-    if not _agrees(form.form(u, v, w), D.reshape(len(V), len(U), *D.shape[-2:]), (s, r)):
+    (u, r), (v, s) = _random_combinations(D.U, rng), _random_combinations(D.V, rng)
+    expected, bound = D.contracted(s, r)
+    if not np.all(np.abs(np.asarray(form.form(u, v, w)) - expected)
+                  <= LINEARITY_RTOL * bound.max(initial=0.0)):
         return "the form is not bilinear in the values and gradients of u and v"
-    i, j = _kept(D, 1), _kept(D, 3)
+    k = 1 + ubasis.mesh.dim()
+    cv, cu = _ncomp(vbasis), _ncomp(ubasis)
+    nonzero = D.nonzero().reshape(cv, k, cu, k)
+    i = np.flatnonzero(nonzero.any(axis=(0, 2, 3)))
+    j = np.flatnonzero(nonzero.any(axis=(0, 1, 2)))
     if len(i) == 0 or len(j) == 0:
         return sp.csr_matrix((vbasis.N, ubasis.N))
     if np.any(j > 0) and _is_rk(ubasis) and getattr(ubasis, "trial", ubasis) is not ubasis:
@@ -326,7 +376,10 @@ def _bilinear(form, ubasis, vbasis, kwargs):
             "pass basis.trial as trial basis, asm(form, basis.trial, basis), or build "
             "the basis with integration='vci_symmetric'", CorrectedTrialWarning,
             stacklevel=4)
-    D = np.ascontiguousarray(D[:, i][:, :, :, j])
+    rows = (np.arange(cv)[:, None] * k + i[None, :]).ravel()
+    cols = (np.arange(cu)[:, None] * k + j[None, :]).ravel()
+    C = D.dense(rows, cols)
+    C = C.reshape((cv, len(i), cu, len(j)) + C.shape[2:])
     pattern, Lu, Lv = _cached_pattern(ubasis, vbasis)
     # one assembler per set of channels, kept with the pattern: it keeps its
     # tables in the layouts of the batched products between calls
@@ -337,7 +390,7 @@ def _bilinear(form, ubasis, vbasis, kwargs):
         test = trial if vbasis is ubasis and np.array_equal(i, j) else \
             _channel_layout(Lv, i, ubasis.dx)
         assembler = by_channels[tuple(i), tuple(j)] = pattern.with_layouts(trial, test)
-    return assembler.bilinear(_tangent(D))
+    return assembler.bilinear(C)
 
 
 def _channel_layout(L, kept, dx):
@@ -370,7 +423,7 @@ def _linear(form, vbasis, kwargs):
     if not _agrees(form.form(v, w), D, (s,)):
         return "the form is not linear in the values and gradients of v"
     D = D.reshape(cv, 1 + dim, *shape)
-    i = _kept(D, 1)
+    i = np.flatnonzero(np.any(D != 0, axis=(0, 2, 3)))  # channels in use
     if len(i) == 0:
         return np.zeros(vbasis.N)
     test = _channel_layout(layout(vbasis), i, vbasis.dx)

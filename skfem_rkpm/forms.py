@@ -275,8 +275,9 @@ class _Operator:
         rows = np.arange(self.constant.shape[0]) if rows is None else rows
         cols = np.arange(self.constant.shape[1]) if cols is None else cols
         constant = self.constant[np.ix_(rows, cols)]
+        in_rows, in_cols = set(rows.tolist()), set(cols.tolist())
         where = {(a, b): v for (a, b), v in self.varying.items()
-                 if a in set(rows) and b in set(cols)}
+                 if a in in_rows and b in in_cols}
         if not where:
             return constant
         out = np.empty(constant.shape + self.shape)

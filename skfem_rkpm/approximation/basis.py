@@ -105,7 +105,13 @@ class _RKBase(AbstractBasis):
 
     @property
     def doflocs(self):
-        """Location of every coefficient: its particle, shape (dim, N)."""
+        """Location of every coefficient: its particle, shape (dim, N).
+
+        The coefficients are not the field's values there (they are
+        generalized displacements): ``f(basis.doflocs)`` is not the
+        coefficient vector of ``f``; use :meth:`RKBasis.project`, and
+        :meth:`RKBasis.nodal_values` to read values at the particles.
+        """
         return np.repeat(self.nodes, self.ncomp, axis=1)
 
     @property

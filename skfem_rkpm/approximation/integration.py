@@ -297,10 +297,22 @@ def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
     for a in range(m):  # (L⁻¹ φ P)_a without an (npairs, m, m) gather; L⁻¹ is lower
         for b in range(a + 1):
             B_pairs[:, a] += Linv[:, a, b][rows] * phiP[:, b]
-    B = sp.csr_matrix((B_pairs.ravel(), ((rows[:, None] * m + np.arange(m)).ravel(),
-                                         np.repeat(cols, m))), shape=(nq * m, nnodes))
+    # B in CSR directly: row (q, α) holds the pairs of point q in table order
+    start, count = table.indptr[:-1], np.diff(table.indptr)
+    place = (m * start[rows] + np.arange(len(rows)) - start[rows])[:, None] \
+        + np.arange(m)[None, :] * count[rows][:, None]  # (npairs, m)
+    data = np.empty(len(rows) * m)
+    data[place] = B_pairs
+    indices = np.empty(len(rows) * m, dtype=cols.dtype)
+    indices[place] = cols[:, None]
+    indptr = np.append(m * start[:, None] + np.arange(m)[None, :] * count[:, None],
+                       m * len(rows))
+    B = sp.csr_matrix((data, indices, indptr), shape=(nq * m, nnodes))
+    # weights may be negative (some Gauss rules on tetrahedra): W B, not √W B
+    WB = sp.csr_matrix((data * np.repeat(weights, m * count), indices, indptr),
+                       shape=B.shape)
     M = (sp.diags(np.bincount(cols, weights[rows] * phi, minlength=nnodes))
-         - B.T @ sp.diags(np.repeat(weights, m)) @ B)
+         - (WB.T.tocsr() @ B))
 
     incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(nq, nnodes))
     nbodies, body = connected_components(incidence.T @ incidence, directed=False)

@@ -95,9 +95,9 @@ SCHEMA = {
         "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),
                        doc="fem: element"),
         "locking": Key("str", "none", choices=("none", "fbar", "auto"),
-                       doc="volumetric locking control; auto: F-bar for FEM, and for "
-                           "RKPM only when a tool sticks (sliding, RKPM runs better "
-                           "without; see docs/ring.md)"),
+                       doc="volumetric locking control; auto: F-bar for linear FEM "
+                           "elements, and for RKPM only when a tool sticks (sliding, "
+                           "RKPM runs better without; see docs/ring.md)"),
     },
     "material": {
         "E": Key("float", required=True, check=_positive, doc="Young's modulus"),

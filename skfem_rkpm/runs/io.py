@@ -1,23 +1,36 @@
-"""Results on disk: step history as CSV, fields as an XDMF time series.
+"""Results on disk: step history as CSV (and JSON lines), fields as an XDMF
+time series.
 
-The XDMF file (with its HDF5 companion, written by meshio) opens in ParaView:
-nodal displacements as point data (use *Warp By Vector*), cell averages of
-the quadrature-point state (Cauchy stress, equivalent plastic strain) as
-cell data.  For RK bases the nodal displacements are the nodal values
-``Λᵀ d`` (Eq. 3.32), not the coefficients.
+Everything is written so that a run killed at any moment keeps every step
+it finished: ``history.csv`` and ``history.jsonl`` grow by one appended row
+per step; the fields of a step go to their own HDF5 file
+(``fields/step-000012.h5``, written under a temporary name and renamed)
+and the index ``fields.xdmf`` is replaced atomically after each of them.
+The index opens in ParaView: nodal displacements as point data (use *Warp
+By Vector*), cell averages of the quadrature-point state (Cauchy stress,
+equivalent plastic strain) as cell data.  For RK bases the nodal
+displacements are the nodal values ``Λᵀ d`` (Eq. 3.32), not the
+coefficients.
 """
 
 import csv
-import os
+import io
+import json
+import re
 from pathlib import Path
 
-import meshio
+import h5py
 import numpy as np
 
-__all__ = ["nodal_displacements", "cell_averages", "write_history", "FieldWriter"]
+from ..solvers.newton import StepRecord
+from .folder import atomic_path, open_append, write_atomic
 
-MESHIO_CELLS = {"MeshTri1": "triangle", "MeshQuad1": "quad", "MeshTet1": "tetra",
-                "MeshHex1": "hexahedron", "MeshLine1": "line"}
+__all__ = ["nodal_displacements", "cell_averages", "history_row", "write_history",
+           "HistoryFile", "record_to_json", "record_from_json", "FieldWriter"]
+
+#: XDMF topology of each scikit-fem mesh type
+XDMF_CELLS = {"MeshTri1": "Triangle", "MeshQuad1": "Quadrilateral",
+              "MeshTet1": "Tetrahedron", "MeshHex1": "Hexahedron"}
 
 
 def nodal_displacements(basis, d):
@@ -40,95 +53,222 @@ def cell_averages(values, dx):
     return np.einsum("eq,eq...->e...", w, v)
 
 
-def write_history(path, history, extra=None):
-    """Write one CSV row per converged step.
+def history_row(record, extra=None):
+    """One CSV row of a step: step, load factor, Newton iterations of the
+    converged attempt, final residual, cut-backs, attempts and iterations of
+    all attempts (failed ones included), contact nodes whose status changed,
+    wall time of all attempts, every reaction component, then ``extra`` (a
+    dict, e.g. gauges such as the current height)."""
+    row = {"step": record.step, "t": record.t, "iterations": record.iterations,
+           "residual": record.residuals[-1], "cutbacks": record.cutbacks,
+           "attempts": record.attempts, "all iterations": record.spent_iterations,
+           "contact changes": record.contact_changes, "seconds": record.seconds}
+    for name, value in record.reactions.items():
+        value = np.atleast_1d(value)
+        if value.size == 1:
+            row[f"reaction {name}"] = float(value[0])
+        else:
+            for c, v in enumerate(value):
+                row[f"reaction {name} {'xyz'[c]}"] = float(v)
+    row.update(extra or {})
+    return row
 
-    Columns: step, load factor, Newton iterations of the converged attempt,
-    final residual, cut-backs, attempts and iterations of all attempts
-    (failed ones included), contact nodes whose status changed, wall time of
-    all attempts, every reaction component, then ``extra`` (a list of dicts, one
-    per step, e.g. gauges such as the current height).
-    """
-    rows = []
-    for k, record in enumerate(history):
-        row = {"step": record.step, "t": record.t, "iterations": record.iterations,
-               "residual": record.residuals[-1], "cutbacks": record.cutbacks,
-               "attempts": record.attempts, "all iterations": record.spent_iterations,
-               "contact changes": record.contact_changes, "seconds": record.seconds}
-        for name, value in record.reactions.items():
-            value = np.atleast_1d(value)
-            if value.size == 1:
-                row[f"reaction {name}"] = float(value[0])
-            else:
-                for c, v in enumerate(value):
-                    row[f"reaction {name} {'xyz'[c]}"] = float(v)
-        if extra is not None:
-            row.update(extra[k])
-        rows.append(row)
+
+def _csv_text(rows, columns, header=True):
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
+    if header:
+        writer.writeheader()
+    writer.writerows(rows)
+    return text.getvalue()
+
+
+def write_history(path, history, extra=None):
+    """Write one CSV row per converged step (see :func:`history_row`);
+    ``extra`` is a list of dicts, one per step.  The file is replaced
+    atomically."""
+    rows = [history_row(r, None if extra is None else extra[k])
+            for k, r in enumerate(history)]
     columns = list(dict.fromkeys(key for row in rows for key in row))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
+    return write_atomic(path, _csv_text(rows, columns))
+
+
+class HistoryFile:
+    """``history.csv`` grown by one appended row per step (O(1) a step).
+
+    The columns are those of the first row; a row with a new column (it
+    does not happen in a scene run: the reactions and gauges are fixed)
+    rewrites the file atomically with the new header.  ``resume=True``
+    continues an existing file.
+    """
+
+    def __init__(self, path, resume=False):
+        self.path = Path(path)
+        self.columns, self.rows = None, []
+        if resume and self.path.exists():
+            with open(self.path, newline="", encoding="utf-8") as handle:
+                reader = csv.DictReader(handle)
+                self.rows = list(reader)
+                self.columns = reader.fieldnames
+
+    def append(self, record, extra=None):
+        row = history_row(record, extra)
+        self.rows.append(row)
+        if self.columns is None or not set(row) <= set(self.columns):
+            self.columns = list(dict.fromkeys([*(self.columns or []), *row]))
+            write_atomic(self.path, _csv_text(self.rows, self.columns))
+            return
+        with open_append(self.path, newline="", encoding="utf-8") as handle:
+            handle.write(_csv_text([row], self.columns, header=False))
+
+
+def record_to_json(record, gauges):
+    """One line of ``history.jsonl``: a step's whole record and its gauges."""
+    data = dict(vars(record))
+    data["reactions"] = {k: np.asarray(v).tolist() for k, v in record.reactions.items()}
+    return json.dumps({"record": data, "gauges": gauges}) + "\n"
+
+
+def record_from_json(line):
+    """``(StepRecord, gauges)`` of a line written by :func:`record_to_json`."""
+    data = json.loads(line)
+    record = dict(data["record"])
+    record["reactions"] = {k: (np.array(v) if isinstance(v, list) else v)
+                           for k, v in record["reactions"].items()}
+    return StepRecord(**record), data["gauges"]
+
+
+_XDMF_HEAD = """<?xml version="1.0"?>
+<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2003/XInclude">
+  <Domain>
+    <Grid Name="mesh" GridType="Uniform">
+      <Topology TopologyType="{topology}" NumberOfElements="{ncells}">
+        <DataItem DataType="Int" Dimensions="{ncells} {nper}" Format="HDF" Precision="8">{folder}/mesh.h5:/cells</DataItem>
+      </Topology>
+      <Geometry GeometryType="XYZ">
+        <DataItem DataType="Float" Dimensions="{npoints} 3" Format="HDF" Precision="8">{folder}/mesh.h5:/points</DataItem>
+      </Geometry>
+    </Grid>
+    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">
+"""
+_XDMF_STEP = """      <Grid Name="step {step}" GridType="Uniform">
+        <xi:include xpointer="xpointer(//Grid[@Name=&quot;mesh&quot;]/*[self::Topology or self::Geometry])"/>
+        <Time Value="{t!r}"/>
+{attributes}      </Grid>
+"""
+_XDMF_ATTRIBUTE = """        <Attribute Name="{name}" AttributeType="{kind}" Center="{center}">
+          <DataItem DataType="Float" Dimensions="{dims}" Format="HDF" Precision="8">{file}:/{name}</DataItem>
+        </Attribute>
+"""
+_XDMF_TAIL = """    </Grid>
+  </Domain>
+</Xdmf>
+"""
+_ATTRIBUTE_KINDS = {1: "Scalar", 3: "Vector", 9: "Tensor"}
 
 
 class FieldWriter:
-    """XDMF time series of a solid problem's fields (use as a context manager).
+    """XDMF time series of a solid problem's fields, one HDF5 file per step.
+
+    ``fields.xdmf`` indexes ``fields/mesh.h5`` (vertices and cells) and one
+    ``fields/step-NNNNNN.h5`` per written step; each step file is complete
+    before it is renamed into place, and the index is replaced atomically
+    after it, so a kill at any moment leaves a readable series of every
+    step written.
 
     Parameters
     ----------
     path : str or Path
-        ``.xdmf`` file; meshio writes the ``.h5`` data beside it.
+        The ``.xdmf`` index; the HDF5 files go to the folder of the same
+        name without the suffix.
     problem : SolidProblem
+    keep_until : int, optional
+        Continue an existing series (to resume a run): keep its steps up to
+        this step number, delete later ones (written after the checkpoint
+        the run resumes from).  By default a new series is started.
+
+    It is also a context manager (nothing to close: every write is complete).
     """
 
-    def __init__(self, path, problem):
-        self.path = Path(path).resolve()
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+    def __init__(self, path, problem, keep_until=None):
+        self.path = Path(path)
+        self.folder = self.path.with_suffix("")
+        self.folder.mkdir(parents=True, exist_ok=True)
         self.problem = problem
         mesh = problem.basis.mesh
-        cell_type = MESHIO_CELLS.get(type(mesh).__name__)
-        if cell_type is None:
+        self.topology = XDMF_CELLS.get(type(mesh).__name__)
+        if self.topology is None:
             raise ValueError(f"no XDMF cell type for {type(mesh).__name__}")
-        self._writer = meshio.xdmf.TimeSeriesWriter(str(self.path))
-        points = np.zeros((mesh.nvertices, 3))
-        points[:, : mesh.dim()] = mesh.p.T
-        self._cells = [(cell_type, mesh.t.T)]
-        self._points = points
+        self.entries = []  # (step, t, file name, attribute shapes)
+        if keep_until is not None:
+            self._keep(keep_until)
+        if keep_until is None or not (self.folder / "mesh.h5").exists():
+            points = np.zeros((mesh.nvertices, 3))
+            points[:, : mesh.dim()] = mesh.p.T
+            with atomic_path(self.folder / "mesh.h5") as tmp, h5py.File(tmp, "x") as f:
+                f["points"] = points
+                f["cells"] = mesh.t.T.astype(np.int64)
+        self._write_index()
 
     def __enter__(self):
-        # meshio opens the .h5 file relative to the working directory: open
-        # it from the output folder so that it lands beside the .xdmf file
-        cwd = os.getcwd()
-        os.chdir(self.path.parent)
-        try:
-            self._writer.__enter__()
-        finally:
-            os.chdir(cwd)
-        self._writer.write_points_cells(self._points, self._cells)
         return self
 
     def __exit__(self, *exc):
-        return self._writer.__exit__(*exc)
+        return None
 
-    def write(self, t, d, evaluation=None):
-        """Write the fields at load factor ``t`` for coefficients ``d``."""
+    def _keep(self, last):
+        for file in sorted(self.folder.glob("step-*.h5")):
+            match = re.fullmatch(r"step-(\d+)\.h5", file.name)
+            if match is None:
+                continue
+            step = int(match.group(1))
+            if step > last:
+                file.unlink()
+                continue
+            with h5py.File(file, "r") as f:
+                shapes = {name: f[name].shape for name in f}
+                self.entries.append((step, float(f.attrs["t"]), file.name, shapes))
+
+    def _write_index(self):
+        mesh = self.problem.basis.mesh
+        parts = [_XDMF_HEAD.format(topology=self.topology, ncells=mesh.t.shape[1],
+                                   nper=mesh.t.shape[0], npoints=mesh.nvertices,
+                                   folder=self.folder.name)]
+        for step, t, name, shapes in self.entries:
+            attributes = "".join(
+                _XDMF_ATTRIBUTE.format(
+                    name=key, kind=_ATTRIBUTE_KINDS[int(np.prod(shape[1:]))],
+                    center="Node" if key == "displacement" else "Cell",
+                    dims=" ".join(map(str, shape)), file=f"{self.folder.name}/{name}")
+                for key, shape in shapes.items())
+            parts.append(_XDMF_STEP.format(step=step, t=float(t), attributes=attributes))
+        parts.append(_XDMF_TAIL)
+        write_atomic(self.path, "".join(parts))
+
+    def write(self, t, d, evaluation=None, step=None):
+        """Write the fields at load factor ``t`` for coefficients ``d``
+        (``step``: the step number, by default one more than the last)."""
+        step = (self.entries[-1][0] + 1 if self.entries else 1) if step is None else step
         problem = self.problem
         u = np.zeros((problem.basis.mesh.nvertices, 3))
         disp = nodal_displacements(problem.basis, d)
         u[:, : disp.shape[1]] = disp
-        point_data = {"displacement": u}
         evaluation = evaluation or problem.evaluate(d, tangent=False)
         dx = problem.assembler.layout.dx
         sigma = problem.cauchy_stress(evaluation)
         s = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
         von_mises = np.sqrt(1.5 * np.einsum("nij,nij->n", s, s))
-        cell_data = {
-            "stress": [cell_averages(sigma.reshape(-1, 9), dx)],
-            "von_mises": [cell_averages(von_mises, dx)],
-            "plastic_strain": [cell_averages(problem.state.alpha, dx)],
-        }
-        self._writer.write_data(t, point_data=point_data, cell_data=cell_data)
+        data = {"displacement": u,
+                "stress": cell_averages(sigma.reshape(-1, 9), dx),
+                "von_mises": cell_averages(von_mises, dx),
+                "plastic_strain": cell_averages(problem.state.alpha, dx)}
+        name = f"step-{step:06d}.h5"
+        with atomic_path(self.folder / name) as tmp, h5py.File(tmp, "x") as f:
+            f.attrs["t"] = float(t)
+            for key, value in data.items():
+                f[key] = value
+        self.entries = [e for e in self.entries if e[0] < step]
+        self.entries.append((step, float(t), name, {k: v.shape for k, v in data.items()}))
+        self._write_index()

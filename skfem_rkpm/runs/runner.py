@@ -1,26 +1,36 @@
 """Build a simulation from a scene and run it with results on disk.
 
 :func:`~skfem_rkpm.runs.build.build` turns a scene into library objects;
-:func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`
-and writes, after every converged step, ``history.csv``, ``fields.xdmf``
-and a checkpoint, so an interrupted run keeps everything it finished and
-``resume=True`` continues from the last step.  Under ``mpiexec`` every rank
-runs the same simulation and only rank 0 writes.
+:func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`.
+A run owns its folder (:class:`~skfem_rkpm.runs.folder.RunFolder`: a lock,
+the outputs of an earlier run removed, ``status.txt`` "running" until it
+ends, the resolved scene as ``scene.toml``) and after every converged step
+appends to ``history.csv`` and ``history.jsonl``, writes the step's fields
+and replaces ``checkpoint.npz``: a run stopped at any moment (Ctrl-C,
+SIGTERM, SIGKILL) keeps every step it finished, and ``resume=True``
+continues from the last checkpoint exactly as if it had not stopped.
+Under ``mpiexec`` every rank runs the same simulation and only rank 0 writes.
 """
 
+import contextlib
+import os
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ..solvers.linear import make_solver
-from ..solvers.newton import newton_steps
+from ..solvers.newton import StepperState, newton_steps
 from ..solvers.petsc import is_root
 from .build import Simulation, build
-from .io import FieldWriter, write_history
+from .checkpoint import load_checkpoint, run_identity, save_checkpoint
+from .folder import RunFolder, open_append, write_atomic
+from .io import FieldWriter, HistoryFile, record_from_json, record_to_json
 
-__all__ = ["Simulation", "build", "run", "scene_step", "Progress"]
+__all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text"]
 
 #: linear solvers that partition the rows by the dof locations
 DISTRIBUTED = ("petsc", "petsc-gamg")
@@ -96,43 +106,81 @@ class Progress:
 def run(sim, out=None, progress=True, resume=False, log=None):
     """Run a simulation; with ``out`` write results there step by step.
 
-    Returns the :class:`~skfem_rkpm.solvers.newton.Result` (history, solutions,
-    completed flag and message).
+    Parameters
+    ----------
+    sim : Simulation
+    out : str or Path, optional
+        Output folder.  A new run removes what an earlier run left there; a
+        folder in use by another run is refused (a ``FolderError``).
+    progress : bool
+        Show the progress line.
+    resume : bool
+        Continue from ``out/checkpoint.npz``: refused (a ``CheckpointError``
+        naming what differs) unless the scene and method are the ones of the
+        checkpoint; the history and the fields continue the same files.
+    log : callable, optional
+        Newton's log (one line per iteration and step).
+
+    Returns
+    -------
+    Result
+        Of :func:`~skfem_rkpm.solvers.newton.newton_steps`, with the whole
+        history (a resumed run's earlier steps included) and ``gauges``.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        On Ctrl-C or SIGTERM, after the step being written is complete.
     """
-    steps = sim.scene["steps"]
-    output = sim.scene["output"]
     out = Path(out) if out is not None else None
+    with contextlib.ExitStack() as stack:
+        folder = None
+        if out is not None and is_root():  # under mpiexec only rank 0 writes
+            folder = stack.enter_context(RunFolder(out))
+        stepper, d0, history, rows = StepperState(), None, [], []
+        identity = run_identity(sim) if out is not None else None
+        if resume and out is not None:  # every MPI rank reads the checkpoint
+            d0, stepper, meta = load_checkpoint(out, sim, identity)
+            history, rows = _resumed_history(out, meta, folder is not None)
+        elif folder is not None:
+            folder.clear()
+        if folder is not None:
+            folder.status(f"running (process {os.getpid()})")
+            write_atomic(out / "scene.toml", scene_text(sim))
+        interrupts = stack.enter_context(_Interrupts())
+        return _run_steps(sim, out if folder is not None else None, progress, resume,
+                          log, stepper, d0, history, rows, identity, interrupts, folder)
+
+
+def _run_steps(sim, out, progress, resume, log, stepper, d0, history, rows, identity,
+               interrupts, folder):
+    steps, output = sim.scene["steps"], sim.scene["output"]
     probes = _point_probes(sim.basis, sim.points)
-    d0, start, history_rows, past = None, 0.0, [], []
+    csv_file = records = fields = None
     if out is not None:
-        checkpoint = out / "checkpoint.pkl"
-        if resume:  # every MPI rank reads the checkpoint
-            if not checkpoint.exists():
-                raise FileNotFoundError(f"{checkpoint}: nothing to resume")
-            d0, start, past, history_rows = _load_checkpoint(sim, checkpoint)
-    if not is_root():  # under mpiexec only rank 0 writes
-        out = None
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-    fields = None
-    if out is not None and output["fields"]:
-        name = "fields.xdmf" if start == 0 else f"fields-from-t{start:.4f}.xdmf"
-        fields = FieldWriter(out / name, sim.problem).__enter__()
+        csv_file = HistoryFile(out / "history.csv", resume=resume)
+        records = open_append(out / "history.jsonl", encoding="utf-8")
+        if output["fields"]:
+            fields = FieldWriter(out / "fields.xdmf", sim.problem,
+                                 keep_until=stepper.step if resume else None)
     bar = Progress(enabled=progress, count=steps["count"])
-    history = list(past)
 
     def on_step(record, d, evaluation):
-        history.append(record)
         gauges = _gauges(sim, probes, d)
         for tool in sim.tools:
             gauges.update(tool.gauges(record.t))
-        history_rows.append(gauges)
+        history.append(record)
+        rows.append(gauges)
         if out is not None:
-            write_history(out / "history.csv", history, history_rows)
-            if fields is not None and record.step % output["every"] == 0:
-                fields.write(record.t, d, evaluation)
-            _save_checkpoint(sim, out / "checkpoint.pkl", d, record.t, history,
-                             history_rows)
+            with interrupts.deferred():  # a step is written whole or not at all
+                csv_file.append(record, gauges)
+                records.write(record_to_json(record, gauges))
+                records.flush()
+                if fields is not None and record.step % output["every"] == 0:
+                    fields.write(record.t, d, evaluation, step=record.step)
+                save_checkpoint(out, sim, d, stepper, identity, steps=len(history),
+                                history_bytes=(out / "history.csv").stat().st_size,
+                                records_bytes=records.tell())
         bar(record)
 
     try:
@@ -140,17 +188,103 @@ def run(sim, out=None, progress=True, resume=False, log=None):
                               steps=steps["count"], tol=steps["tolerance"],
                               max_iterations=steps["max_iterations"],
                               max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
-                              contributions=sim.contributions, start=start, on_step=on_step,
-                              linear_solver=_linear_solver(sim))
+                              contributions=sim.contributions, on_step=on_step,
+                              linear_solver=_linear_solver(sim), stepper=stepper)
+    except KeyboardInterrupt:
+        if folder is not None:
+            last = (f"after step {history[-1].step}, t = {history[-1].t:.6g}" if history
+                    else "before the first step")
+            folder.status(f"interrupted {last}: continue with --resume")
+        raise
+    except BaseException as err:
+        if folder is not None:
+            folder.status(f"failed: {type(err).__name__}: {err}")
+        raise
     finally:
         bar.close()
-        if fields is not None:
-            fields.__exit__(None, None, None)
+        if records is not None:
+            records.close()
     result.history = history
-    result.gauges = history_rows
-    if out is not None:
-        (out / "status.txt").write_text(result.message + "\n")
+    result.gauges = rows
+    if folder is not None:
+        folder.status(result.message)
     return result
+
+
+def scene_text(sim):
+    """The resolved scene as TOML text (the scene file with every ``--set``
+    applied; a relative gmsh file made absolute), with the method."""
+    from .scene import apply_setting
+
+    text = sim.scene.get("_text")
+    if text is None:
+        return f"# scene of {sim.scene.get('_source')} (its text is not known)\n"
+    geometry = sim.scene["geometry"]
+    if geometry.get("kind") == "gmsh" and sim.scene.get("_base"):
+        path = Path(sim.scene["_base"]) / geometry["file"]
+        text = apply_setting(text, f'geometry.file="{path.resolve()}"')
+    text = apply_setting(text, f'model.method="{sim.method}"')
+    return f"# resolved scene of {sim.scene.get('_source')}\n" + text
+
+
+def _resumed_history(out, meta, root):
+    """The records and gauges of the checkpoint's steps from ``history.jsonl``;
+    on rank 0, cut ``history.csv`` and ``history.jsonl`` back to their size at
+    the checkpoint (a kill may have left a step written after it)."""
+    records_path, csv_path = out / "history.jsonl", out / "history.csv"
+    for path, size in ((records_path, meta["records_bytes"]),
+                       (csv_path, meta["history_bytes"])):
+        if not path.is_file() or path.is_symlink() or path.stat().st_size < size:
+            from .checkpoint import CheckpointError
+
+            raise CheckpointError(f"--resume: {path} is missing or shorter than at the "
+                                  f"checkpoint (changed after the run?); start the run "
+                                  f"afresh (without --resume)")
+    with open(records_path, "rb") as handle:
+        lines = handle.read(meta["records_bytes"]).decode("utf-8").splitlines()
+    if root:
+        for path, size in ((records_path, meta["records_bytes"]),
+                           (csv_path, meta["history_bytes"])):
+            with open(path, "r+b") as handle:
+                handle.truncate(size)
+    pairs = [record_from_json(line) for line in lines]
+    return [p[0] for p in pairs], [p[1] for p in pairs]
+
+
+class _Interrupts:
+    """SIGTERM handled like Ctrl-C (a ``KeyboardInterrupt``), and both held
+    back while a step is being written (:meth:`deferred`).  Installed only in
+    the main thread (signal handlers cannot be set elsewhere)."""
+
+    def __init__(self):
+        self.critical, self.pending, self.saved = False, None, {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.saved[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, handler in self.saved.items():
+            signal.signal(sig, handler)
+
+    def _handler(self, signum, frame):
+        if self.critical:
+            self.pending = signum
+            return
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    @contextlib.contextmanager
+    def deferred(self):
+        self.critical = True
+        try:
+            yield
+        finally:
+            self.critical = False
+        if self.pending is not None:
+            signum, self.pending = self.pending, None
+            raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def _linear_solver(sim):
@@ -160,31 +294,3 @@ def _linear_solver(sim):
     if name in DISTRIBUTED:
         return make_solver(name, points=sim.basis.doflocs)
     return name
-
-
-def _save_checkpoint(sim, path, d, t, history, rows):
-    import pickle
-
-    state = sim.problem.state
-    tools = [tool.get_state() for tool in sim.tools]
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "wb") as handle:
-        pickle.dump(dict(d=d, t=t, Cp_inv=state.Cp_inv, alpha=state.alpha, tools=tools,
-                         history=history, rows=rows), handle)
-    tmp.replace(path)
-
-
-def _load_checkpoint(sim, path):
-    import pickle
-
-    from ..mechanics.materials import MaterialState
-
-    with open(path, "rb") as handle:
-        data = pickle.load(handle)
-    if data["d"].shape != (sim.problem.N,):
-        raise ValueError(f"{path} belongs to a different discretization "
-                         f"({data['d'].shape[0]} dofs, this run has {sim.problem.N})")
-    sim.problem.state = MaterialState(data["Cp_inv"], data["alpha"])
-    for tool, state in zip(sim.tools, data["tools"]):
-        tool.set_state(state)
-    return data["d"], data["t"], data["history"], data["rows"]

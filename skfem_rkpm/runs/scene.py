@@ -290,6 +290,7 @@ def parse_scene(text, source="<scene>", base=None):
     _check_combinations(scene, fail)
     scene["_source"] = source
     scene["_base"] = str(base) if base is not None else None
+    scene["_text"] = text
     return scene
 
 

@@ -25,7 +25,8 @@ from .linear import make_solver
 from .step_control import StepControl
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 
-__all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "newton_steps"]
+__all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "StepperState",
+           "newton_steps"]
 
 
 @dataclass
@@ -113,6 +114,21 @@ class Result:
     message: str = ""
 
 
+@dataclass
+class StepperState:
+    """What the next step of :func:`newton_steps` depends on besides the
+    coefficients and the problem's own state: the load factor reached
+    ``t``, the number of converged steps ``step`` (cut-back sub-steps
+    included), the predictor ``rate``, ``dd/dt`` of the last step (``None``
+    before the first), and the step size ``control``.  Checkpoint it to
+    resume a run exactly."""
+
+    t: float = 0.0
+    step: int = 0
+    rate: np.ndarray = None
+    control: StepControl = None
+
+
 class NonConvergence(RuntimeError):
     """A step failed even after the allowed cut-backs."""
 
@@ -152,7 +168,8 @@ SETTLED_RESIDUAL = 100.0
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
                  contributions=(), start=0.0, on_step=None, extrapolate=True,
-                 linear_solver="auto", control=None, max_augmentations=30):
+                 linear_solver="auto", control=None, max_augmentations=30,
+                 stepper=None):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -210,6 +227,11 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         per step stop a run first).  A contribution with
         ``status_changes()`` reports the contact nodes whose status changed
         in the step.
+    stepper : StepperState, optional
+        Start from it (the load factor, step count, predictor and step
+        control of a checkpoint: ``start`` is then ignored, and its
+        ``control``, if set, replaces ``control``) and keep it up to date: it
+        is updated in place after every converged step, before ``on_step``.
 
     Returns
     -------
@@ -243,6 +265,9 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     history, solutions = [], []
     t_done = float(start)
     step_index = int(np.sum(targets <= t_done + 1e-14))
+    if stepper is not None:
+        t_done, step_index, rate = float(stepper.t), int(stepper.step), stepper.rate
+        control = stepper.control = stepper.control or control
     for target in targets[targets > t_done + 1e-14]:
         while t_done < target - 1e-14:
             clock = time.perf_counter()
@@ -293,6 +318,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                                 tally["attempts"], tally["iterations"], changes)
             history.append(record)
             solutions.append(d.copy())
+            if stepper is not None:
+                stepper.t, stepper.step, stepper.rate = t, step_index, rate
             if on_step is not None:
                 on_step(record, d, ev)
             log(f"step {step_index}: t = {t:.6g} converged in {its} iterations "

@@ -24,6 +24,8 @@ import gmsh
 import numpy as np
 import skfem
 
+from .geo_check import check_geo
+
 __all__ = [
     "rectangle",
     "graded_rectangle",
@@ -586,11 +588,12 @@ def _check_gmsh_input(path):
     ``$MeshFormat``) nor ``.geo`` text before gmsh sees them: gmsh reads
     anything else with its ``.geo`` parser, which NUL or non-UTF-8 bytes
     leave broken for the rest of the process (every later ``.geo`` file
-    then fails with a syntax error)."""
+    then fails with a syntax error).  Returns the text of a ``.geo`` file
+    (None for a ``.msh`` file)."""
     with open(path, "rb") as handle:
         head = handle.read(64)
         if head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"$MeshFormat"):
-            return
+            return None
         data = head + handle.read()
     if path.suffix.lower() == ".msh":
         raise ValueError(f"mesh file '{path}' is not a gmsh .msh file: it does not start "
@@ -604,18 +607,24 @@ def _check_gmsh_input(path):
         line = data.count(b"\n", 0, bad) + 1
         raise ValueError(f"mesh file '{path}' is neither a .msh file nor .geo text: byte "
                          f"{bad} (line {line}) is {data[bad:bad + 1]!r}")
+    return data.decode("utf-8")
 
 
-def load(path):
+def load(path, trust_geo=False):
     """Read a gmsh ``.msh`` file, or mesh a ``.geo`` file, into a scikit-fem mesh.
 
     A ``.geo`` file is meshed in 2D with the options it sets (for example
-    ``Mesh.RecombineAll = 1;`` for quadrilaterals).
+    ``Mesh.RecombineAll = 1;`` for quadrilaterals).  It is refused if it
+    runs programs, reads other files or writes files
+    (:func:`skfem_rkpm.geo_check.check_geo`), unless ``trust_geo``.
 
     Parameters
     ----------
     path : str or os.PathLike
         File to read.
+    trust_geo : bool
+        Let gmsh run a ``.geo`` file whatever it does (only for files you
+        trust).
 
     Returns
     -------
@@ -625,14 +634,17 @@ def load(path):
     Raises
     ------
     ValueError
-        If the file does not exist, cannot be read by gmsh, or does not
-        hold a usable 2D mesh; the message names the file.
+        If the file does not exist, cannot be read by gmsh, does not
+        hold a usable 2D mesh, or is a ``.geo`` script that reaches outside
+        its geometry; the message names the file (and the line).
     """
     path = Path(path)
     if not path.is_file():
         what = "is not a file" if path.exists() else "does not exist"
         raise ValueError(f"mesh file '{path}' {what}")
-    _check_gmsh_input(path)
+    geo_text = _check_gmsh_input(path)
+    if geo_text is not None:
+        check_geo(f"mesh file '{path}'", geo_text, trust_geo)
     with _gmsh_model("load"):
         try:
             gmsh.merge(str(path))

@@ -2,9 +2,9 @@
 
     skfem-rkpm scenes
     skfem-rkpm run ring [--method rkpm|fem] [--set key=value ...] [--out DIR] [--resume]
-                        [--solver NAME]
+                        [--solver NAME] [--trust-geo]
     mpiexec -n 2 skfem-rkpm run ring --solver petsc
-    skfem-rkpm compare ring [--set key=value ...] [--out DIR]
+    skfem-rkpm compare ring [--set key=value ...] [--out DIR] [--trust-geo]
     skfem-rkpm sweep ring --vary key=v1,v2,... [--vary ...] [--set key=value ...]
                [--method rkpm|fem] [--scheduler ADDRESS] [--workers N] [--out DIR]
 
@@ -12,6 +12,8 @@ A scene is a built-in name (``skfem-rkpm scenes``) or a path to a TOML file.
 """
 
 import argparse
+import hashlib
+import shlex
 import sys
 from pathlib import Path
 
@@ -33,16 +35,35 @@ def _scene_path(name):
     return scenes[name]
 
 
-def _run_one(path, settings, method, out, resume, quiet):
+def _default_out(path, method, settings, suffix=""):
+    """``results/SCENE-METHOD``; with ``--set`` a hash of the settings is
+    added, so that a changed scene never overwrites the scene's own results."""
+    name = f"{path.stem}-{method}{suffix}" if method else f"{path.stem}{suffix}"
+    if settings:
+        digest = hashlib.sha256("\n".join(settings).encode()).hexdigest()[:8]
+        name += f"-set-{digest}"
+    return Path("results") / name
+
+
+def _out(args, path, method, settings, suffix=""):
+    if args.out:
+        return Path(args.out)
+    out = _default_out(path, method, settings, suffix)
+    if settings and is_root():
+        print(f"note: --set changes the scene, so the results go to {out} (give --out to "
+              f"name the folder)")
+    return out
+
+
+def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
     from .plot import save_run_figures
     from .runner import build, run, scene_step
 
     scene = load_scene(path, settings)
-    sim = build(scene, method)
+    sim = build(scene, method, trust_geo=trust_geo)
     root = is_root()  # under mpiexec only rank 0 writes and prints
     ranks = world()[1]
     if root:
-        out.mkdir(parents=True, exist_ok=True)
         print(f"{scene['model']['title'] or path.stem}: {sim.method}, {sim.basis.N} dofs, "
               f"{scene['steps']['count']} steps -> {out}")
         if ranks > 1 and not scene["steps"]["solver"].startswith("petsc"):
@@ -72,9 +93,20 @@ def cmd_scenes(args):
 
 def cmd_run(args):
     path = _scene_path(args.scene)
-    out = Path(args.out or f"results/{path.stem}")
+    method = args.method or load_scene(path, args.set)["model"]["method"]
+    out = _out(args, path, method, args.set)
     settings = args.set + ([f"steps.solver={args.solver}"] if args.solver else [])
-    _, result = _run_one(path, settings, args.method, out, args.resume, args.quiet)
+    try:
+        _, result = _run_one(path, settings, args.method, out, args.resume, args.quiet,
+                             args.trust_geo)
+    except KeyboardInterrupt:
+        again = ["skfem-rkpm", "run", args.scene, *(f"--set={s}" for s in settings),
+                 *(["--method", args.method] if args.method else []),
+                 *(["--trust-geo"] if args.trust_geo else []), "--out", str(out),
+                 "--resume"]
+        print(f"\ninterrupted: the finished steps are in {out}; continue with\n  "
+              f"{shlex.join(again)}", file=sys.stderr)
+        return 130
     return 0 if result.completed else 1
 
 
@@ -82,13 +114,22 @@ def cmd_compare(args):
     from .report import write_comparison
 
     path = _scene_path(args.scene)
-    out = Path(args.out or f"results/{path.stem}-compare")
+    out = _out(args, path, None, args.set, "-compare")
     runs = {}
-    for method in ("rkpm", "fem"):
-        runs[method] = _run_one(path, args.set, method, out / method, False, args.quiet)
+    try:
+        for method in ("rkpm", "fem"):
+            runs[method] = _run_one(path, args.set, method, out / method, False,
+                                    args.quiet, args.trust_geo)
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: the finished steps are in {out}; compare cannot resume, "
+              f"run it again to start over", file=sys.stderr)
+        return 130
     report = write_comparison(runs, out)
     print(f"report: {report}")
-    return 0
+    failed = [m for m, (_, result) in runs.items() if not result.completed]
+    if failed:
+        print(f"not completed: {', '.join(failed)}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 def cmd_sweep(args):
@@ -96,7 +137,7 @@ def cmd_sweep(args):
 
     path = _scene_path(args.scene)
     vary = dict(parse_vary(option) for option in args.vary)
-    out = Path(args.out or f"results/{path.stem}-sweep")
+    out = _out(args, path, None, args.set, "-sweep")
     records = run_sweep(path, vary, args.set, args.method, out, args.scheduler,
                         args.workers, progress=not args.quiet)
     bad = [r for r in records if r["status"] != "completed"]
@@ -105,7 +146,10 @@ def cmd_sweep(args):
 
 
 def main(argv=None):
+    from .. import __version__
+
     parser = argparse.ArgumentParser(prog="skfem-rkpm", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"skfem-rkpm {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(func=cmd_scenes)
     for name, helptext, func in (("run", "run a scene", cmd_run),
@@ -115,8 +159,14 @@ def main(argv=None):
         p.add_argument("scene", help="built-in scene name or TOML file")
         p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a scene value, e.g. tools.platen.friction=0.3")
-        p.add_argument("--out", help="output folder (default results/SCENE)")
+        p.add_argument("--out", help=("output folder (default results/SCENE-METHOD)"
+                                      if name == "run" else
+                                      "output folder (default results/SCENE-compare)")
+                       + "; with --set a hash of the settings is added")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument("--trust-geo", action="store_true",
+                       help="let the scene's gmsh .geo file run programs or read and "
+                            "write other files (refused otherwise)")
         if name == "run":
             p.add_argument("--method", choices=("rkpm", "fem"))
             p.add_argument("--resume", action="store_true",
@@ -140,17 +190,25 @@ def main(argv=None):
                         "local cluster)")
     p.add_argument("--workers", type=int, help="local worker processes (default: one "
                                                 "per core)")
-    p.add_argument("--out", help="sweep folder (default results/SCENE-sweep)")
+    p.add_argument("--out", help="sweep folder (default results/SCENE-sweep; with --set a "
+                                 "hash of the settings is added)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_sweep)
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except ValueError as err:  # SceneError, and the library's checks of the input
+    except (ValueError, ImportError) as err:
+        # SceneError, the library's checks of the input, the run folder and
+        # checkpoint checks, a linear solver whose package is missing
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("\ninterrupted: finished steps are on disk (use --resume)", file=sys.stderr)
+    except MemoryError as err:
+        print(f"error: out of memory ({err or 'MemoryError'}); use a coarser mesh or a "
+              f"smaller support", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:  # sweep: running it again skips the finished runs
+        print("\ninterrupted: the finished runs are kept; run the same command again to "
+              "do the others", file=sys.stderr)
         return 130
 
 

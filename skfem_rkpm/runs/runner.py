@@ -133,6 +133,7 @@ def run(sim, out=None, progress=True, resume=False, log=None):
         On Ctrl-C or SIGTERM, after the step being written is complete.
     """
     out = Path(out) if out is not None else None
+    solver = _linear_solver(sim)  # a missing solver package stops here, folder untouched
     with contextlib.ExitStack() as stack:
         folder = None
         if out is not None and is_root():  # under mpiexec only rank 0 writes
@@ -149,11 +150,12 @@ def run(sim, out=None, progress=True, resume=False, log=None):
             write_atomic(out / "scene.toml", scene_text(sim))
         interrupts = stack.enter_context(_Interrupts())
         return _run_steps(sim, out if folder is not None else None, progress, resume,
-                          log, stepper, d0, history, rows, identity, interrupts, folder)
+                          log, stepper, d0, history, rows, identity, interrupts, folder,
+                          solver)
 
 
 def _run_steps(sim, out, progress, resume, log, stepper, d0, history, rows, identity,
-               interrupts, folder):
+               interrupts, folder, solver):
     steps, output = sim.scene["steps"], sim.scene["output"]
     probes = _point_probes(sim.basis, sim.points)
     csv_file = records = fields = None
@@ -189,7 +191,7 @@ def _run_steps(sim, out, progress, resume, log, stepper, d0, history, rows, iden
                               max_iterations=steps["max_iterations"],
                               max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
                               contributions=sim.contributions, on_step=on_step,
-                              linear_solver=_linear_solver(sim), stepper=stepper)
+                              linear_solver=solver, stepper=stepper)
     except KeyboardInterrupt:
         if folder is not None:
             last = (f"after step {history[-1].step}, t = {history[-1].t:.6g}" if history
@@ -293,4 +295,4 @@ def _linear_solver(sim):
     name = sim.scene["steps"]["solver"]
     if name in DISTRIBUTED:
         return make_solver(name, points=sim.basis.doflocs)
-    return name
+    return make_solver(name)

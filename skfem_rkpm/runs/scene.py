@@ -521,8 +521,10 @@ def tool_from(name, section):
     raise SceneError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
 
 
-def mesh_from(section, base=None):
-    """The background mesh of a scene's geometry section."""
+def mesh_from(section, base=None, trust_geo=False):
+    """The background mesh of a scene's geometry section (``trust_geo``: let a
+    ``.geo`` file run programs or read other files, see
+    :func:`skfem_rkpm.geo_check.check_geo`)."""
     from ..meshes import graded_rectangle, load, rectangle
 
     if section["kind"] == "annulus":
@@ -540,7 +542,7 @@ def mesh_from(section, base=None):
         if base is not None and not path.is_absolute():
             path = Path(base) / path
         try:
-            return load(path)
+            return load(path, trust_geo=trust_geo)
         except ValueError as err:
             raise SceneError(f"geometry.file: {err}") from err
     (x0, x1), (y0, y1) = section["x"], section["y"]

@@ -102,6 +102,13 @@ def save_checkpoint(folder, sim, d, stepper, identity, **meta):
 
 
 def _read(path):
+    with open(path, "rb") as handle:
+        head = handle.read(4)
+    if head != b"PK\x03\x04":  # every .npz is a zip archive
+        what = ("empty" if not head else "a pickle, which is never loaded (it could run "
+                "code)" if head[:1] == b"\x80" else "not an .npz archive")
+        raise CheckpointError(f"{path} cannot be resumed: it is {what}; start the run "
+                              f"afresh (without --resume)")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
@@ -110,8 +117,8 @@ def _read(path):
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile,
             UnicodeDecodeError) as err:
         reason = str(err) or type(err).__name__
-        if "pickled data" in reason:
-            reason = "it is not an .npz file but a pickle, which is never loaded"
+        if "pickle" in reason:
+            reason = "it holds object arrays, which are never loaded (they could run code)"
         raise CheckpointError(f"{path} cannot be resumed: {reason}; start the run "
                               f"afresh (without --resume)") from None
 

@@ -127,8 +127,14 @@ class RunFolder:
                 shutil.rmtree(path)
             else:
                 path.unlink(missing_ok=True)
-        for tmp in self.path.glob(".*.tmp"):
-            tmp.unlink(missing_ok=True)
+
+    def remove_temporaries(self):
+        """Remove the temporary files a killed run left (``.NAME.PID.tmp``,
+        here and in ``fields/``); the lock guarantees no one writes them."""
+        for folder in (self.path, self.path / "fields"):
+            if folder.is_dir() and not folder.is_symlink():
+                for tmp in folder.glob(".*.tmp"):
+                    tmp.unlink(missing_ok=True)
 
     def status(self, text):
         """Replace ``status.txt``."""

@@ -138,6 +138,7 @@ def run(sim, out=None, progress=True, resume=False, log=None):
         folder = None
         if out is not None and is_root():  # under mpiexec only rank 0 writes
             folder = stack.enter_context(RunFolder(out))
+            folder.remove_temporaries()
         stepper, d0, history, rows = StepperState(), None, [], []
         identity = run_identity(sim) if out is not None else None
         if resume and out is not None:  # every MPI rank reads the checkpoint

@@ -20,6 +20,7 @@ from ..mechanics.problem import SolidProblem
 from ..mechanics.rigid_contact import RigidContact
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
+from .memory import check_rk_memory
 from .scene import (SceneError, components, material_from, mesh_from, prescribed_components,
                     spacing_radius)
 
@@ -65,6 +66,8 @@ def build(scene, method=None, trust_geo=False):
     boundaries = set((mesh.boundaries or {}).keys())
     disc = scene["discretization"]
     if method == "rkpm":
+        check_rk_memory(mesh, spacing_radius(mesh, disc), disc["order"],
+                        disc["support_shape"], disc["quadrature"])
         basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
                         support_shape=disc["support_shape"], intorder=disc["quadrature"],
                         integration=disc["integration"], axisymmetric=model == "axisymmetric",

@@ -1,0 +1,111 @@
+"""Will the RK basis fit in memory?  An estimate before it is built.
+
+Building an :class:`~skfem_rkpm.approximation.basis.RKBasis` stores, and
+works on, every (evaluation point, particle) pair with the point inside the
+particle's support.  The number of pairs is about the number of points
+(cell and boundary quadrature points, particles) times the mean number of
+supports covering a point, ``Σ_I |supp_I ∩ B| / |Ω|`` (``B`` the bounding
+box of the mesh: supports at the boundary reach out of the body); the peak memory per pair
+was measured with ``tracemalloc`` on the ring (2D, box supports, 1.1 and
+17 million pairs): 197 bytes at order 1 (m = 3 monomials) and 373 at
+order 2 (m = 6), i.e. ``20 + 60 m`` bytes (radial supports: the same per
+pair).  :func:`check_rk_memory` refuses, before anything is built, a basis
+whose estimate exceeds the memory available (``MemAvailable`` of
+``/proc/meminfo``, a cgroup limit, ``ulimit -v``), with the estimate and
+what to change.
+"""
+
+import math
+import resource
+from math import comb
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["ProblemTooLarge", "estimate_rk_bytes", "available_bytes", "check_rk_memory"]
+
+GiB = 2.0 ** 30
+
+
+class ProblemTooLarge(ValueError):
+    """The RK basis would not fit in the memory available."""
+
+
+def _volume(mesh):
+    """Measure of the mesh: cell areas in 2D (shoelace), the bounding box otherwise."""
+    p = mesh.p
+    if p.shape[0] == 2:
+        x, y = p[0, mesh.t], p[1, mesh.t]  # (vertices per cell, cells), in order
+        return float(np.sum(np.abs(np.sum(x * np.roll(y, -1, 0) - np.roll(x, -1, 0) * y,
+                                          axis=0))) / 2)
+    return float(np.prod(p.max(axis=1) - p.min(axis=1)))
+
+
+def estimate_rk_bytes(mesh, radius, order, support_shape, intorder):
+    """``(pairs, bytes)``: estimated point-particle pairs and peak bytes of the
+    basis build (see the module notes)."""
+    from skfem.quadrature import get_quadrature
+
+    dim = mesh.p.shape[0]
+    _, weights = get_quadrature(mesh.refdom, intorder)
+    _, facet_weights = get_quadrature(mesh.brefdom, intorder) if dim > 1 else (None, [1])
+    points = (mesh.nelements * len(weights) + len(mesh.boundary_facets()) *
+              len(facet_weights) + mesh.nvertices)
+    radius = np.broadcast_to(np.asarray(radius, float), (mesh.nvertices,))
+    if support_shape == "box":
+        measure = (2 * radius) ** dim
+    else:
+        measure = math.pi ** (dim / 2) / math.gamma(dim / 2 + 1) * radius ** dim
+    # the part of each support inside the mesh's bounding box: supports of
+    # particles near the boundary reach out of the body and cover fewer points
+    lo, hi = mesh.p.min(axis=1, keepdims=True), mesh.p.max(axis=1, keepdims=True)
+    inside = (np.minimum(mesh.p + radius, hi) - np.maximum(mesh.p - radius, lo)) / (2 * radius)
+    measure = measure * np.prod(np.clip(inside, 0, 1), axis=0)
+    covering = min(float(measure.sum()) / max(_volume(mesh), 1e-300), mesh.nvertices)
+    pairs = points * covering
+    monomials = comb(order + dim, dim)
+    return pairs, pairs * (20 + 60 * monomials)
+
+
+def available_bytes():
+    """Memory this process may still use: the least of ``MemAvailable``, the
+    cgroup's limit less its usage, and ``ulimit -v`` (None if none is known)."""
+    found = []
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                found.append(int(line.split()[1]) * 1024)
+    except OSError:
+        pass
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = int(Path("/sys/fs/cgroup/memory.current").read_text())
+        if limit != "max":
+            found.append(int(limit) - used)
+    except (OSError, ValueError):
+        pass
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY:
+        try:
+            size = int(Path("/proc/self/statm").read_text().split()[0])
+            found.append(soft - size * resource.getpagesize())
+        except (OSError, ValueError):
+            found.append(soft)
+    return min(found) if found else None
+
+
+def check_rk_memory(mesh, radius, order, support_shape, intorder, available=None):
+    """Raise :class:`ProblemTooLarge` if the RK basis will not fit.
+
+    ``available``: bytes (default :func:`available_bytes`)."""
+    pairs, need = estimate_rk_bytes(mesh, radius, order, support_shape, intorder)
+    available = available_bytes() if available is None else available
+    if available is not None and need > available:
+        raise ProblemTooLarge(
+            f"the RK basis would need about {need / GiB:.1f} GiB ({pairs / 1e6:.3g} million "
+            f"point-particle pairs: {mesh.nvertices} particles, each support covering "
+            f"about {pairs / max(mesh.nelements, 1):.0f} pairs per cell), but only "
+            f"{max(available, 0) / GiB:.1f} GiB are available; use fewer cells "
+            f"(geometry.divisions), a smaller support (discretization.support or "
+            f"dilation), a lower discretization.quadrature, or --method fem")
+    return pairs, need

@@ -353,7 +353,7 @@ def test_memory_estimate_is_close_and_refuses_what_does_not_fit(tmp_path, capsys
 
     sim = small_ring()
     disc = sim.scene["discretization"]
-    pairs, need = memory.estimate_rk_bytes(sim.mesh, spacing_radius(sim.mesh, disc),
+    pairs, need, _ = memory.estimate_rk_bytes(sim.mesh, spacing_radius(sim.mesh, disc),
                                            disc["order"], disc["support_shape"],
                                            disc["quadrature"])
     actual = sim.basis.table.indices.size

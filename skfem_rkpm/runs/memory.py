@@ -42,8 +42,8 @@ def _volume(mesh):
 
 
 def estimate_rk_bytes(mesh, radius, order, support_shape, intorder):
-    """``(pairs, bytes)``: estimated point-particle pairs and peak bytes of the
-    basis build (see the module notes)."""
+    """``(pairs, bytes, points)``: estimated point-particle pairs, peak bytes
+    of the basis build (see the module notes) and evaluation points."""
     from skfem.quadrature import get_quadrature
 
     dim = mesh.p.shape[0]
@@ -64,7 +64,7 @@ def estimate_rk_bytes(mesh, radius, order, support_shape, intorder):
     covering = min(float(measure.sum()) / max(_volume(mesh), 1e-300), mesh.nvertices)
     pairs = points * covering
     monomials = comb(order + dim, dim)
-    return pairs, pairs * (20 + 60 * monomials)
+    return pairs, pairs * (20 + 60 * monomials), points
 
 
 def available_bytes():
@@ -98,14 +98,14 @@ def check_rk_memory(mesh, radius, order, support_shape, intorder, available=None
     """Raise :class:`ProblemTooLarge` if the RK basis will not fit.
 
     ``available``: bytes (default :func:`available_bytes`)."""
-    pairs, need = estimate_rk_bytes(mesh, radius, order, support_shape, intorder)
+    pairs, need, points = estimate_rk_bytes(mesh, radius, order, support_shape, intorder)
     available = available_bytes() if available is None else available
     if available is not None and need > available:
         raise ProblemTooLarge(
-            f"the RK basis would need about {need / GiB:.1f} GiB ({pairs / 1e6:.3g} million "
-            f"point-particle pairs: {mesh.nvertices} particles, each support covering "
-            f"about {pairs / max(mesh.nelements, 1):.0f} pairs per cell), but only "
-            f"{max(available, 0) / GiB:.1f} GiB are available; use fewer cells "
+            f"the RK basis would need about {need / GiB:,.1f} GiB ({pairs:.3g} "
+            f"point-particle pairs: {points:,} evaluation points, each inside about "
+            f"{pairs / points:,.0f} of the {mesh.nvertices:,} particle supports), but only "
+            f"{max(available, 0) / GiB:,.1f} GiB are available; use fewer cells "
             f"(geometry.divisions), a smaller support (discretization.support or "
             f"dilation), a lower discretization.quadrature, or --method fem")
     return pairs, need

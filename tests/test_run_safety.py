@@ -1,7 +1,9 @@
 """Run folders you can trust after a crash, and files from others that run nothing.
 
-The small ring (6 × 4 cells, 6 load steps, the first of which is cut back
-twice: 11 converged steps, about 1 s) stands for a scene run.
+The small ring (6 × 4 cells, 6 load steps: 15 converged steps, about 1 s)
+stands for a scene run.  Its step control is busy: step 1 is cut back twice,
+steps 2-9 grow the step again (the size is remembered), step 10 is cut
+back once.
 """
 
 import csv
@@ -25,6 +27,7 @@ from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 SMALL = ["steps.count=6", "geometry.divisions=[6,4]", "discretization.support=12",
          "output.figures=false"]
 RING = builtin_scenes()["ring"]
+STEPS = 15
 
 
 def small_ring(*more):
@@ -51,8 +54,8 @@ def fields_of(folder):
 def reference(tmp_path_factory):
     out = tmp_path_factory.mktemp("reference")
     result = runner.run(small_ring(), out, progress=False)
-    assert result.completed and len(result.history) == 11
-    assert result.history[0].cutbacks == 2  # the first target is reached in 3 steps
+    assert result.completed and len(result.history) == STEPS
+    assert [r.cutbacks for r in result.history] == [2] + [0] * 8 + [1] + [0] * 5
     return out, result
 
 
@@ -192,7 +195,7 @@ def test_outputs_never_write_through_a_symlink(tmp_path):
     result = runner.run(small_ring(), out, progress=False)
     assert result.completed and target.read_text() == "keep me\n"
     assert not (out / "history.csv").is_symlink()
-    assert len(history_without_time(out / "history.csv")) == 11
+    assert len(history_without_time(out / "history.csv")) == STEPS
     # resuming into a folder whose history became a link is refused
     (out / "history.csv").unlink()
     (out / "history.csv").symlink_to(target)
@@ -201,12 +204,13 @@ def test_outputs_never_write_through_a_symlink(tmp_path):
     assert target.read_text() == "keep me\n"
 
 
-@pytest.mark.parametrize("stop_at", [1, 2, 5])
+@pytest.mark.parametrize("stop_at", [1, 2, 5, 10])
 def test_resumed_run_equals_the_uninterrupted_one(tmp_path, monkeypatch, reference,
                                                   stop_at):
-    """Stopped after step 1 (inside the cut-back of the first target: steps 1-3
-    reach it), 2 or 5; the stop falls after the step's history rows and fields
-    are written but before its checkpoint, the worst moment."""
+    """Stopped after step 1 or 10 (each needed cut-backs: the next steps
+    start from the halved size), 2 or 5 (the size grows again after 3 steps
+    without a cut-back); the stop falls after the step's history rows and
+    fields are written but before its checkpoint, the worst moment."""
     ref_out, ref = reference
     out = tmp_path / "run"
     save = runner.save_checkpoint
@@ -225,19 +229,20 @@ def test_resumed_run_equals_the_uninterrupted_one(tmp_path, monkeypatch, referen
     assert (out / "status.txt").read_text().startswith(
         f"interrupted after step {stop_at + 1}")
     resumed = runner.run(small_ring(), out, progress=False, resume=True)
-    assert resumed.completed and len(resumed.history) == 11
-    # the predictor, the step count and the states are checkpointed exactly:
+    assert resumed.completed and len(resumed.history) == STEPS
+    # the predictor, the step count, the step control and the states are
+    # checkpointed exactly:
     # the resumed run repeats the same operations, so the same bits
     np.testing.assert_array_equal(resumed.d, ref.d)
     assert history_without_time(out / "history.csv") == history_without_time(
         ref_out / "history.csv")
     mine, theirs = fields_of(out), fields_of(ref_out)
-    assert list(mine) == list(theirs) and len(mine) == 11
+    assert list(mine) == list(theirs) and len(mine) == STEPS
     for step in theirs:
         for key in theirs[step]:
             np.testing.assert_array_equal(mine[step][key], theirs[step][key])
     with open(out / "fields.xdmf") as handle:
-        assert handle.read().count("<Time ") == 11
+        assert handle.read().count("<Time ") == STEPS
 
 
 def test_resume_refuses_another_scene_or_method_and_names_it(tmp_path, capsys):

@@ -92,7 +92,8 @@ def save_checkpoint(folder, sim, d, stepper, identity, **meta):
         for f in dataclasses.fields(tool.get_state()):
             arrays[f"tool{k}.{f.name}"] = np.asarray(getattr(tool.get_state(), f.name))
     control = (None if stepper.control is None
-               else {k: float(v) for k, v in dataclasses.asdict(stepper.control).items()})
+               else {k: (v.item() if isinstance(v, np.generic) else v)
+                     for k, v in dataclasses.asdict(stepper.control).items()})
     info = dict(meta, format=FORMAT, t=float(stepper.t), step=int(stepper.step),
                 control=control, identity=identity)
     arrays["meta"] = np.frombuffer(json.dumps(info).encode(), np.uint8)
@@ -170,8 +171,6 @@ def load_checkpoint(folder, sim, identity):
                                   f"start the run afresh (without --resume)") from None
     try:
         control = StepControl(**info["control"]) if info.get("control") else None
-        if control is not None:
-            control.streak = int(control.streak)
     except (TypeError, ValueError) as err:
         raise CheckpointError(f"{path}: the step control does not fit ({err}); start the "
                               f"run afresh (without --resume)") from None

@@ -67,7 +67,7 @@ def open_append(path, **kwargs):
     """Open a text file for appending (created if missing), never through a link."""
     try:
         fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW, 0o644)
-    except OSError as err:
+    except OSError:
         if Path(path).is_symlink():
             raise FolderError(f"{path} is a symbolic link: a run writes only its own "
                               f"files; remove the link") from None

@@ -18,6 +18,7 @@ import signal
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -139,33 +140,70 @@ def run(sim, out=None, progress=True, resume=False, log=None):
         if out is not None and is_root():  # under mpiexec only rank 0 writes
             folder = stack.enter_context(RunFolder(out))
             folder.remove_temporaries()
-        stepper, d0, history, rows = StepperState(), None, [], []
+        start = _Start(StepperState(), None, [], [])
         identity = run_identity(sim) if out is not None else None
         if resume and out is not None:  # every MPI rank reads the checkpoint
             d0, stepper, meta = load_checkpoint(out, sim, identity)
-            history, rows = _resumed_history(out, meta, folder is not None)
+            start = _Start(stepper, d0, *_resumed_history(out, meta, folder is not None))
         elif folder is not None:
             folder.clear()
+        writer = None
         if folder is not None:
             folder.status(f"running (process {os.getpid()})")
             write_atomic(out / "scene.toml", scene_text(sim))
+            writer = stack.enter_context(_StepWriter(
+                sim, out, identity, start.stepper.step if resume else None))
         interrupts = stack.enter_context(_Interrupts())
-        return _run_steps(sim, out if folder is not None else None, progress, resume,
-                          log, stepper, d0, history, rows, identity, interrupts, folder,
-                          solver)
+        return _run_steps(sim, start, writer, folder, interrupts, progress, log, solver)
 
 
-def _run_steps(sim, out, progress, resume, log, stepper, d0, history, rows, identity,
-               interrupts, folder, solver):
-    steps, output = sim.scene["steps"], sim.scene["output"]
+@dataclass
+class _Start:
+    """Where a run starts: the stepper, coefficients, and the steps done."""
+
+    stepper: StepperState
+    d0: np.ndarray
+    history: list
+    rows: list
+
+
+class _StepWriter:
+    """Writes a converged step whole: a row appended to ``history.csv`` and
+    ``history.jsonl``, the step's fields, then ``checkpoint.npz``, the commit
+    point (a resume cuts off what a killed run wrote after it).
+
+    ``keep_until``: continue the files of a resumed run, whose checkpoint
+    is at that step (None: start new ones)."""
+
+    def __init__(self, sim, out, identity, keep_until=None):
+        self.sim, self.out, self.identity = sim, out, identity
+        self.csv = HistoryFile(out / "history.csv", resume=keep_until is not None)
+        self.records = open_append(out / "history.jsonl", encoding="utf-8")
+        self.fields = None
+        if sim.scene["output"]["fields"]:
+            self.fields = FieldWriter(out / "fields.xdmf", sim.problem, keep_until)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.records.close()
+
+    def write(self, record, gauges, d, evaluation, stepper, steps):
+        self.csv.append(record, gauges)
+        self.records.write(record_to_json(record, gauges))
+        self.records.flush()
+        if self.fields is not None and record.step % self.sim.scene["output"]["every"] == 0:
+            self.fields.write(record.t, d, evaluation, step=record.step)
+        save_checkpoint(self.out, self.sim, d, stepper, self.identity, steps=steps,
+                        history_bytes=(self.out / "history.csv").stat().st_size,
+                        records_bytes=self.records.tell())
+
+
+def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver):
+    steps = sim.scene["steps"]
     probes = _point_probes(sim.basis, sim.points)
-    csv_file = records = fields = None
-    if out is not None:
-        csv_file = HistoryFile(out / "history.csv", resume=resume)
-        records = open_append(out / "history.jsonl", encoding="utf-8")
-        if output["fields"]:
-            fields = FieldWriter(out / "fields.xdmf", sim.problem,
-                                 keep_until=stepper.step if resume else None)
+    history, rows = start.history, start.rows
     bar = Progress(enabled=progress, count=steps["count"])
 
     def on_step(record, d, evaluation):
@@ -174,25 +212,18 @@ def _run_steps(sim, out, progress, resume, log, stepper, d0, history, rows, iden
             gauges.update(tool.gauges(record.t))
         history.append(record)
         rows.append(gauges)
-        if out is not None:
+        if writer is not None:
             with interrupts.deferred():  # a step is written whole or not at all
-                csv_file.append(record, gauges)
-                records.write(record_to_json(record, gauges))
-                records.flush()
-                if fields is not None and record.step % output["every"] == 0:
-                    fields.write(record.t, d, evaluation, step=record.step)
-                save_checkpoint(out, sim, d, stepper, identity, steps=len(history),
-                                history_bytes=(out / "history.csv").stat().st_size,
-                                records_bytes=records.tell())
+                writer.write(record, gauges, d, evaluation, start.stepper, len(history))
         bar(record)
 
     try:
         result = newton_steps(sim.problem, sim.prescribed, load=sim.load,
                               steps=steps["count"], tol=steps["tolerance"],
                               max_iterations=steps["max_iterations"],
-                              max_cutbacks=steps["max_cutbacks"], log=log, d0=d0,
+                              max_cutbacks=steps["max_cutbacks"], log=log, d0=start.d0,
                               contributions=sim.contributions, on_step=on_step,
-                              linear_solver=solver, stepper=stepper)
+                              linear_solver=solver, stepper=start.stepper)
     except KeyboardInterrupt:
         if folder is not None:
             last = (f"after step {history[-1].step}, t = {history[-1].t:.6g}" if history
@@ -205,8 +236,6 @@ def _run_steps(sim, out, progress, resume, log, stepper, d0, history, rows, iden
         raise
     finally:
         bar.close()
-        if records is not None:
-            records.close()
     result.history = history
     result.gauges = rows
     if folder is not None:

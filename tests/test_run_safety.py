@@ -372,3 +372,24 @@ def test_memory_estimate_is_close_and_refuses_what_does_not_fit(tmp_path, capsys
     assert err.count("\n") == 0 and "the RK basis would need about" in err
     assert "geometry.divisions" in err and "--method fem" in err
     assert not (tmp_path / "results").exists()  # refused before anything was written
+
+
+def test_a_geo_file_without_physical_groups_says_so(tmp_path, capsys):
+    plain = "\n".join(line for line in GEO.splitlines() if "Physical" not in line)
+    (tmp_path / "square.geo").write_text(plain + "\n")
+    (tmp_path / "scene.toml").write_text(GEO_SCENE)
+    assert main(["run", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "o"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "the file square.geo defines no named boundaries" in err
+    assert 'Physical Curve("name")' in err
+
+
+def test_warnings_print_as_one_line(tmp_path, capsys):
+    # the platen starts 20 mm above the ring and moves 10 mm: it never touches
+    args = ["run", "ring", *(f"--set={s}" for s in SMALL), "--set",
+            "tools.platen.point=[0.0, 40.0]", "--out", str(tmp_path / "o"), "--quiet"]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "warning: tool 'platen' does not reach the part" in err
+    assert "UserWarning" not in err and "warn(" not in err

@@ -98,8 +98,8 @@ def build(scene, method=None, trust_geo=False):
             continue
         boundary = name.split(".", 1)[1]
         if boundary not in boundaries:
-            raise SceneError(f"[{name}]: the mesh has no boundary {boundary!r}; it has "
-                             f"{sorted(boundaries)}")
+            raise SceneError(f"[{name}]: the mesh has no boundary {boundary!r}; "
+                             f"{_named(boundaries, scene)}")
         for comp in components(section["fix"] or []):
             prescribed.append(Prescribed(boundary, comp, 0.0, section["method"]))
         for comp, value in prescribed_components(section["displacement"]).items():
@@ -118,11 +118,21 @@ def build(scene, method=None, trust_geo=False):
         for slave in section.get("slaves") or []:
             if slave not in boundaries:
                 raise SceneError(f"[{name}] slaves: the mesh has no boundary {slave!r}; "
-                                 f"it has {sorted(boundaries)}")
+                                 f"{_named(boundaries, scene)}")
     tools = [tool_from_scene(name.split(".", 1)[1], section, basis, problem, scene)
              for name, section in tool_sections.items()]
     points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
     return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points, followers)
+
+
+def _named(boundaries, scene):
+    """What boundaries the mesh has, for an error about a missing one."""
+    if boundaries:
+        return f"it has {sorted(boundaries)}"
+    if scene["geometry"]["kind"] == "gmsh":
+        return (f"the file {scene['geometry']['file']} defines no named boundaries: give "
+                f"its boundary curves names with Physical Curve(\"name\") = {{...}};")
+    return "it has no named boundaries"
 
 
 def _values(value, name):

@@ -15,6 +15,7 @@ import argparse
 import hashlib
 import shlex
 import sys
+import warnings
 from pathlib import Path
 
 from ..solvers.petsc import is_root, world
@@ -145,10 +146,16 @@ def cmd_sweep(args):
     return 1 if bad else 0
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Warnings as one line, ``warning: ...``, without the source line."""
+    print(f"warning: {message}", file=file or sys.stderr)
+
+
 def main(argv=None):
     from .. import __version__
 
-    parser = argparse.ArgumentParser(prog="skfem-rkpm", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="skfem-rkpm", description="Run RKPM and FEM scenes: run, compare, sweep, scenes.")
     parser.add_argument("--version", action="version", version=f"skfem-rkpm {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(func=cmd_scenes)
@@ -195,6 +202,7 @@ def main(argv=None):
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_sweep)
     args = parser.parse_args(argv)
+    shown, warnings.showwarning = warnings.showwarning, _show_warning
     try:
         return args.func(args)
     except (ValueError, ImportError) as err:
@@ -210,6 +218,8 @@ def main(argv=None):
         print("\ninterrupted: the finished runs are kept; run the same command again to "
               "do the others", file=sys.stderr)
         return 130
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":

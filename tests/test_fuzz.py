@@ -444,7 +444,7 @@ Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
 
 def test_geo_without_physical_groups(tmp_path):
     """A plain mesh loads (no named boundaries); a scene that names one is
-    told which names the mesh has."""
+    told that the file defines none and how to name them."""
     geo = tmp_path / "plain.geo"
     geo.write_text(SQUARE)
     mesh = load(geo)
@@ -454,7 +454,9 @@ def test_geo_without_physical_groups(tmp_path):
         + "[boundary.bottom]\nfix = [\"y\"]\n"
     scene = parse_scene(text, str(tmp_path / "part.toml"), base=tmp_path)
     with pytest.raises(SceneError, match=r"\[boundary.bottom\]: the mesh has no boundary "
-                                         r"'bottom'; it has \[\]"):
+                                         r"'bottom'; the file plain.geo defines no named "
+                                         r"boundaries: give its boundary curves names "
+                                         r"with Physical Curve"):
         build(scene)
 
 

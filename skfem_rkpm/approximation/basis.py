@@ -23,11 +23,12 @@ from skfem.element import DiscreteField
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from ..meshes import local_spacing
+from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
 from .shape import ShapeTable, coordinates, rk_shape_functions
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
-INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss")
+INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss") + NODAL_SCHEMES
 
 
 def _rows(table, start, stop):
@@ -236,7 +237,7 @@ class RKBasis(_RKBase):
         Circular/spherical or tensor-product supports.
     intorder : int
         Degree of the Gauss rule on each background cell.
-    integration : {"vci", "vci_symmetric", "gauss"}
+    integration : {"vci", "vci_symmetric", "gauss", "scni", "dni"}
         ``"gauss"``: plain Gauss quadrature, the paper's scheme.
         ``"vci"``: variationally consistent test-function gradients (see
         :mod:`skfem_rkpm.approximation.integration`); ``basis.basis`` then holds the
@@ -247,6 +248,13 @@ class RKBasis(_RKBase):
         fields, used for trial and test functions alike (``basis.trial`` is
         the basis itself): symmetric matrices, patch test to round-off.
         Order 1, not axisymmetric.
+        ``"scni"``: stabilized conforming nodal integration, one point per
+        particle with gradients smoothed over its median dual cell;
+        ``"dni"``: direct nodal integration (exact gradients at the
+        particles, fails the patch test).  See
+        :mod:`skfem_rkpm.approximation.nodal_integration`; both need the
+        particles to be the vertices of a 2D mesh, and the "cells" of the
+        basis are then the particles (``nelems = nnodes``, one point each).
     nodes : ndarray, shape (dim, nnodes), optional
         Particle positions; default the mesh vertices.
     radius : float or ndarray, optional
@@ -254,12 +262,18 @@ class RKBasis(_RKBase):
     axisymmetric : bool
         The problem is axisymmetric with ``x`` the radius: VCI then imposes
         its constraints in the measure ``R dR dZ``.  The basis itself (and
-        ``dx`` for scikit-fem forms) is unchanged.
+        ``dx`` for scikit-fem forms) is unchanged.  With ``"scni"`` the
+        smoothing is done in that measure (points at the cell centroids).
+    stabilization : float
+        ``α`` of the modified SCNI stabilization (``"scni"`` only): the
+        solid adds ``α Σ_k A_k (B_k - B_L)ᵀ C (B_k - B_L)`` with the piece
+        gradients of the smoothing cells and the elastic moduli ``C``
+        (:class:`skfem_rkpm.mechanics.problem.SolidProblem`).  0 for plain SCNI.
     """
 
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
                  support_shape="radial", intorder=4, integration="vci",
-                 nodes=None, radius=None, axisymmetric=False):
+                 nodes=None, radius=None, axisymmetric=False, stabilization=0.0):
         if integration not in INTEGRATION_SCHEMES:
             raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
                              f"not {integration!r}")
@@ -269,6 +283,17 @@ class RKBasis(_RKBase):
                 intorder, (int, np.integer)) or intorder < 1:
             raise ValueError(f"intorder (the Gauss rule degree) must be an integer >= 1, "
                              f"not {intorder!r}")
+        if integration in NODAL_SCHEMES and nodes is not None and not (
+                np.shape(nodes) == mesh.p.shape and np.array_equal(nodes, mesh.p)):
+            raise ValueError(f"integration={integration!r} integrates at the mesh "
+                             "vertices: leave nodes=None (the particles are the vertices)")
+        if isinstance(stabilization, (bool, np.bool_)) or not isinstance(
+                stabilization, (int, float, np.integer, np.floating)) or not (
+                np.isfinite(stabilization) and stabilization >= 0):
+            raise ValueError(f"stabilization must be a number >= 0, not {stabilization!r}")
+        if stabilization and integration != "scni":
+            raise ValueError(f"stabilization={stabilization} needs integration='scni' "
+                             f"(not {integration!r})")
         if nodes is None:
             coordinates(mesh.p, "mesh vertex")
             nodes = mesh.p
@@ -310,6 +335,11 @@ class RKBasis(_RKBase):
         self.support_shape, self.intorder = support_shape, intorder
         self.integration = integration
         self.axisymmetric = axisymmetric
+        self.stabilization = float(stabilization)
+        self.nodal_quadrature = None
+        if integration in NODAL_SCHEMES:
+            self._setup_nodal(mesh, nodes, vector)
+            return
 
         try:
             geometry = cell_geometry(mesh, intorder)
@@ -336,6 +366,22 @@ class RKBasis(_RKBase):
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric")
         self._setup(mesh, geometry, table, test_grads, nodes, vector)
+
+    @property
+    def segment_points(self):
+        """Gauss points per segment of the smoothing cells (nodal schemes)."""
+        return max(2, (self.intorder + 2) // 2)
+
+    def _setup_nodal(self, mesh, nodes, vector):
+        """One point per particle (see :mod:`.nodal_integration`)."""
+        ntable = self._shape_table(nodes, nodes)
+        self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
+            nodes.shape[0] if vector else 1), format="csr")
+        q = nodal_quadrature(mesh, self.integration,
+                             lambda x: self._shape_table(x, nodes, gradients=False), ntable,
+                             self.segment_points, self.axisymmetric)
+        self.nodal_quadrature = q
+        self._setup(mesh, q.geometry, q.table, q.table.grads, nodes, vector)
 
     def _shape_table(self, x, nodes=None, gradients=True):
         return rk_shape_functions(
@@ -495,7 +541,8 @@ class RKFacetBasis(_RKBase):
     intorder : int, optional
         Quadrature degree on the facets; default that of ``basis``.  Keep the
         default for loads in a VCI patch test: the correction is built with
-        that boundary quadrature.
+        that boundary quadrature.  For nodal schemes the default is the
+        composite rule of the smoothing cells' boundary segments.
     """
 
     def __init__(self, basis, facets=None, intorder=None):
@@ -506,8 +553,12 @@ class RKFacetBasis(_RKBase):
         elif isinstance(facets, (set, list, tuple)) and all(
                 isinstance(f, str) for f in facets):
             facets = np.concatenate([basis._named_boundary(f) for f in facets])
+        quadrature = None
+        if intorder is None and basis.integration in NODAL_SCHEMES:
+            # the points of the smoothing cells' boundary segments
+            quadrature = boundary_rule(basis.segment_points)
         geometry = facet_geometry(mesh, basis.intorder if intorder is None
-                                  else intorder, facets)
+                                  else intorder, facets, quadrature)
         xb = geometry.global_coordinates().reshape(mesh.dim(), -1)
         table = basis._shape_table(xb)
         self.radius = basis.radius

@@ -13,6 +13,8 @@ import numpy as np
 import scipy.sparse as sp
 from skfem.element import ElementVector
 
+from .nodal_integration import boundary_rule
+
 __all__ = ["transformation", "Constraint", "ConstraintSet", "nodal_constraint",
            "weak_constraint"]
 
@@ -98,15 +100,21 @@ def weak_constraint(basis, facets, component, intorder=None):
     ``∫_Γ N_K (u_c - g_c) dΓ = 0``.  Unlike nodal prescription, the reaction
     ``Σ_K λ_K N_K`` is a traction field: a uniform traction is represented
     exactly and homogeneous states stay exact for RK bases.  For linear
-    elements with linear data it prescribes exactly the nodal values.
+    elements with linear data it prescribes exactly the nodal values.  With
+    nodal integration the default rule is that of the smoothing cells'
+    boundary segments, on which the integration constraint holds.
     """
     from skfem import FacetBasis
 
     mesh = basis.mesh
     find = _named_facets(mesh, facets)
+    quadrature = None
+    if intorder is None and getattr(basis, "nodal_quadrature", None) is not None:
+        quadrature = boundary_rule(basis.segment_points)
     if intorder is None:
         intorder = getattr(basis, "intorder", None) or 2 * basis.elem.maxdeg
-    hats = FacetBasis(mesh, type(mesh).elem(), facets=find, intorder=intorder)
+    hats = FacetBasis(mesh, type(mesh).elem(), facets=find, intorder=intorder,
+                      quadrature=quadrature)
     Nhat = _facet_values(hats)
     W = sp.diags(np.asarray(hats.dx).ravel())
     if hasattr(basis, "element_nodes"):  # RK: shape functions at the same points

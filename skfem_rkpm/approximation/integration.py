@@ -49,10 +49,11 @@ def cell_geometry(mesh, intorder):
     return CellBasis(mesh, _lagrange_element(mesh), intorder=intorder)
 
 
-def facet_geometry(mesh, intorder, facets=None):
-    """A scikit-fem facet basis supplying boundary quadrature and normals."""
+def facet_geometry(mesh, intorder, facets=None, quadrature=None):
+    """A scikit-fem facet basis supplying boundary quadrature and normals
+    (``quadrature = (X, W)`` on the reference facet overrides ``intorder``)."""
     return FacetBasis(mesh, _lagrange_element(mesh), facets=facets,
-                      intorder=intorder)
+                      intorder=intorder, quadrature=quadrature)
 
 
 def _pair_monomials(table, x, nodes, scale, exps):

@@ -10,14 +10,19 @@ which equals the paper's current-configuration form ``∫ σ : ∇_x δu dv``
 needs no spatial gradients: the material gradients of the Lagrangian RK
 shape functions are built once and reused every iteration.  ``∇̃`` are the
 test gradients (VCI-corrected for RK bases).  An FEM basis runs the same
-code.
+code.  With nodal integration (``RKBasis(..., integration="scni")``) every
+particle is one point and carries the material state; a modified SCNI
+stabilization adds the constant Lagrangian stiffness ``α K_stab`` (see
+:func:`skfem_rkpm.approximation.nodal_integration.stabilization_matrix`),
+built with the elastic moduli of the material.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..assembly import Assembler
+from ..approximation.nodal_integration import stabilization_matrix
+from ..assembly import Assembler, isotropic_tangent
 from .kinematics import deformation_gradient, entries, from_entries
 from .materials import MaterialState, ReturnMapError
 
@@ -85,6 +90,20 @@ class SolidProblem:
         self._rows = np.array([i for i, _ in self.entries])
         self._cols = np.array([J for _, J in self.entries])
         self._local = None  # local tangent matrices, reused by every evaluation
+        self.stabilization = self._stabilization_matrix()
+
+    def _stabilization_matrix(self):
+        """``α K_stab`` of a stabilized SCNI basis with the elastic moduli, or None."""
+        alpha = getattr(self.basis, "stabilization", 0.0)
+        if not alpha:
+            return None
+        m = self.material
+        mu = m.E / (2.0 * (1.0 + m.nu))
+        lam = m.E * m.nu / ((1.0 + m.nu) * (1.0 - 2.0 * m.nu))
+        dim = self.basis.nodes.shape[0]
+        return alpha * stabilization_matrix(self.basis.nodal_quadrature,
+                                            isotropic_tangent(lam, mu, dim),
+                                            self.basis.ncomp)
 
     @property
     def N(self):
@@ -111,12 +130,20 @@ class SolidProblem:
                 f"det F = {J[bad[0]]:.3g} <= 0 at {bad.size} quadrature points; "
                 f"first {self._where(bad[0])}", bad)
         if self.locking == "fbar":
-            return self._evaluate_fbar(F, J, state, tangent)
+            return self._stabilized(self._evaluate_fbar(F, J, state, tangent), d)
         P, tau, new_state, A = self._update(F, state, tangent)
         P_ext, A_ext = from_entries(self._at_entries(P), A, self.model, self.shape)
         f_int = self.assembler.linear(P_ext)
         K = self._tangent_matrix(A_ext) if tangent else None
-        return Evaluation(f_int, K, F, P, tau, new_state)
+        return self._stabilized(Evaluation(f_int, K, F, P, tau, new_state), d)
+
+    def _stabilized(self, evaluation, d):
+        """Add the stabilization force ``α K_stab d`` and stiffness, if any."""
+        if self.stabilization is not None:
+            evaluation.f_int = evaluation.f_int + self.stabilization @ np.asarray(d)
+            if evaluation.K is not None:
+                evaluation.K = evaluation.K + self.stabilization
+        return evaluation
 
     def _update(self, F, state, tangent):
         """``material.update`` with failures named by quadrature point."""
@@ -135,6 +162,8 @@ class SolidProblem:
         """``cell c (point q) at X = (...)`` for a flat quadrature point index."""
         X = np.asarray(self.basis.global_coordinates())
         x = X.reshape(len(X), -1)[:, point]
+        if getattr(self.basis, "nodal_quadrature", None) is not None:
+            return f"at particle {point} (X = ({', '.join(f'{v:.4g}' for v in x)}))"
         cell, qp = np.divmod(point, self.shape[1])
         return f"in cell {cell} (point {qp}) at X = ({', '.join(f'{v:.4g}' for v in x)})"
 

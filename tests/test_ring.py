@@ -12,7 +12,7 @@ import pytest
 from skfem_rkpm.verification.exact import uniaxial_compression
 from skfem_rkpm.mechanics.materials import perfect
 from skfem_rkpm.runs.runner import build, run
-from skfem_rkpm.runs.scene import builtin_scenes, load_scene
+from skfem_rkpm.runs.scene import DEFAULT_STABILIZATION, SceneError, builtin_scenes, load_scene
 
 COARSE = ["geometry.divisions=[6,4]", "discretization.support=12.0",
           "discretization.quadrature=4", "steps.count=5", "output.fields=false",
@@ -38,6 +38,8 @@ def exact_frictionless(reduction):
 @pytest.mark.parametrize("method, settings, rtol", [
     ("fem", (), 1e-5),
     ("rkpm", ("tools.platen.collocation=\"quadrature\"",), 1e-5),
+    ("rkpm", ("tools.platen.collocation=\"quadrature\"",
+              "discretization.integration=\"scni\""), 1e-5),
 ])
 def test_frictionless_ring_is_homogeneous(method, settings, rtol):
     """Exact up to the penalty's penetration (σ_y / (1e3 E) ≈ 3.5e-7 of the
@@ -130,3 +132,17 @@ def test_rkpm_stick_ring_runs_until_the_hole_closes_fem_stops_earlier():
     fem = paper_ring("fem", "stick", *settings)
     assert not fem.completed and "det F" in fem.message
     assert 0.5 < 0.7 * fem.history[-1].t < reached
+
+
+def test_scni_scene_puts_the_material_points_at_the_particles():
+    scene = load_scene(builtin_scenes()["ring"], [*COARSE, 'discretization.integration="scni"'])
+    sim = build(scene, "rkpm")
+    assert sim.problem.npoints == sim.basis.nnodes == 7 * 5
+    assert sim.basis.stabilization == DEFAULT_STABILIZATION
+    assert sim.problem.stabilization is not None
+    plain = load_scene(builtin_scenes()["ring"], [*COARSE, 'discretization.integration="scni"',
+                                                  "discretization.stabilization=0.0"])
+    assert build(plain, "rkpm").problem.stabilization is None
+    wrong = load_scene(builtin_scenes()["ring"], [*COARSE, "discretization.stabilization=0.1"])
+    with pytest.raises(SceneError, match="only for integration"):
+        build(wrong, "rkpm")

@@ -21,8 +21,8 @@ from ..mechanics.rigid_contact import RigidContact
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
 from .memory import check_rk_memory
-from .scene import (SceneError, components, material_from, mesh_from, prescribed_components,
-                    spacing_radius)
+from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from, mesh_from,
+                    prescribed_components, spacing_radius)
 
 __all__ = ["Simulation", "build", "tool_from_scene"]
 
@@ -68,12 +68,18 @@ def build(scene, method=None, trust_geo=False):
     if method == "rkpm":
         check_rk_memory(mesh, spacing_radius(mesh, disc), disc["order"],
                         disc["support_shape"], disc["quadrature"])
+        stabilization = disc.get("stabilization")
+        if stabilization is not None and disc["integration"] != "scni":
+            raise SceneError(f"discretization.stabilization: only for integration = "
+                             f"\"scni\" (this scene has {disc['integration']!r})")
+        if disc["integration"] == "scni" and stabilization is None:
+            stabilization = DEFAULT_STABILIZATION
         basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
                         support_shape=disc["support_shape"], intorder=disc["quadrature"],
                         integration=disc["integration"], axisymmetric=model == "axisymmetric",
                         radius=(spacing_radius(mesh, disc)
                                 if disc["support"] is not None else None),
-                        support=disc["dilation"])
+                        support=disc["dilation"], stabilization=stabilization or 0.0)
     else:
         element = ELEMENTS[disc["element"]]()
         if element.refdom != mesh.refdom:

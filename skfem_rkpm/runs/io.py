@@ -8,7 +8,8 @@ per step; the fields of a step go to their own HDF5 file
 and the index ``fields.xdmf`` is replaced atomically after each of them.
 The index opens in ParaView: nodal displacements as point data (use *Warp
 By Vector*), cell averages of the quadrature-point state (Cauchy stress,
-equivalent plastic strain) as cell data.  For RK bases the nodal
+equivalent plastic strain) as cell data (with nodal integration the state
+of every particle as point data).  For RK bases the nodal
 displacements are the nodal values ``Λᵀ d`` (Eq. 3.32), not the
 coefficients.
 """
@@ -197,6 +198,9 @@ class FieldWriter:
         self.folder = self.path.with_suffix("")
         self.folder.mkdir(parents=True, exist_ok=True)
         self.problem = problem
+        # nodal integration: the material points are the particles (vertices),
+        # whose state is written as it is, at the vertices
+        self._nodal = getattr(problem.basis, "nodal_quadrature", None) is not None
         mesh = problem.basis.mesh
         self.topology = XDMF_CELLS.get(type(mesh).__name__)
         if self.topology is None:
@@ -240,7 +244,7 @@ class FieldWriter:
             attributes = "".join(
                 _XDMF_ATTRIBUTE.format(
                     name=key, kind=_ATTRIBUTE_KINDS[int(np.prod(shape[1:]))],
-                    center="Node" if key == "displacement" else "Cell",
+                    center="Node" if key == "displacement" or self._nodal else "Cell",
                     dims=" ".join(map(str, shape)), file=f"{self.folder.name}/{name}")
                 for key, shape in shapes.items())
             parts.append(_XDMF_STEP.format(step=step, t=float(t), attributes=attributes))
@@ -260,10 +264,11 @@ class FieldWriter:
         sigma = problem.cauchy_stress(evaluation)
         s = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
         von_mises = np.sqrt(1.5 * np.einsum("nij,nij->n", s, s))
-        data = {"displacement": u,
-                "stress": cell_averages(sigma.reshape(-1, 9), dx),
-                "von_mises": cell_averages(von_mises, dx),
-                "plastic_strain": cell_averages(problem.state.alpha, dx)}
+        fields = {"stress": sigma.reshape(-1, 9), "von_mises": von_mises,
+                  "plastic_strain": problem.state.alpha}
+        if not self._nodal:
+            fields = {key: cell_averages(value, dx) for key, value in fields.items()}
+        data = {"displacement": u, **fields}
         name = f"step-{step:06d}.h5"
         with atomic_path(self.folder / name) as tmp, h5py.File(tmp, "x") as f:
             f.attrs["t"] = float(t)

@@ -12,8 +12,11 @@ __all__ = ["nodal_plastic_strain", "plot_deformed", "plot_history", "save_run_fi
 
 
 def nodal_plastic_strain(problem):
-    """Equivalent plastic strain averaged from the cells to the mesh vertices."""
+    """Equivalent plastic strain averaged from the cells to the mesh vertices
+    (with nodal integration: the values at the particles)."""
     mesh = problem.basis.mesh
+    if getattr(problem.basis, "nodal_quadrature", None) is not None:
+        return problem.state.alpha
     cells = cell_averages(problem.state.alpha, problem.assembler.layout.dx)
     total = np.bincount(mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]),
                         minlength=mesh.nvertices)

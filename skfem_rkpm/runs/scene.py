@@ -45,6 +45,10 @@ class Key:
     check: object = None  # callable value -> error text or None
 
 
+#: α of the modified SCNI stabilization when a scene does not give one
+DEFAULT_STABILIZATION = 1.0
+
+
 SCHEMA = {
     "model": {
         "type": Key("str", "plane_strain", choices=("plane_strain", "axisymmetric", "3d"),
@@ -89,7 +93,12 @@ SCHEMA = {
         "order": Key("int", 1, choices=(0, 1, 2), doc="rkpm: basis order"),
         "kernel": Key("str", "cubic", choices=("cubic", "quartic"), doc="rkpm: window"),
         "support_shape": Key("str", "radial", choices=("radial", "box"), doc="rkpm: support"),
-        "integration": Key("str", "vci", choices=("vci", "vci_symmetric", "gauss"), doc="rkpm: integration"),
+        "integration": Key("str", "vci", choices=("vci", "vci_symmetric", "gauss", "scni", "dni"),
+                           doc="rkpm: integration; scni/dni: one point per particle "
+                               "(2D meshes; see docs/nodal_integration.md)"),
+        "stabilization": Key("float", check=_non_negative,
+                             doc="rkpm, scni: α of the modified SCNI stabilization "
+                                 f"(default {DEFAULT_STABILIZATION}; 0: plain SCNI)"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),

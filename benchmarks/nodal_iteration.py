@@ -1,0 +1,191 @@
+"""Cost of one Newton iteration with nodal integration (SCNI, DNI) against
+Gauss+VCI at equal particles, with the accuracy of each beside it.
+
+Part 1, cost.  The ring section of ``scenes/ring.toml`` (axisymmetric, r from
+30 to 60 mm, z from 0 to 20 mm, box supports of 3 spacings, J2 perfect
+plasticity) at several particle counts, compressed homogeneously by 30 %
+(every point on the plastic branch, the costly path of the return map) plus
+a small random perturbation.  Timed per scheme, fastest of ``--repeat``
+(CPU time, ``time.process_time``, one BLAS thread):
+
+* *material*: ``J2Material.update`` at every material point;
+* *assembly*: internal force and tangent (``assembler.linear``,
+  ``local_bilinear``, ``matrix``), plus the stabilization product and sum
+  for stabilized SCNI;
+* *evaluate*: ``SolidProblem.evaluate`` as a whole (kinematics, material,
+  assembly, checks);
+* *setup*: building the basis and the problem (shape functions, VCI or the
+  smoothing cells, the stabilization matrix), done once per run.
+
+Target (issue 17): an SCNI iteration (material + assembly) at most 1/4 of the
+Gauss+VCI one.
+
+Part 2, accuracy.  Timoshenko's cantilever (linear elasticity, plane stress,
+16 x 4 particles per unit level, support 2): relative energy and L² errors
+of each scheme, measured with 4 x 4 Gauss points per cell (the same
+particles and shape functions, so the error of the integration scheme is
+not hidden by measuring it at its own points).
+
+Run:  python benchmarks/nodal_iteration.py [--sizes 16 32 64] [--repeat 5]
+"""
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+SCHEMES = {  # label: RKBasis keywords
+    "Gauss+VCI 4x4": dict(integration="vci", intorder=7),
+    "Gauss+VCI 2x2": dict(integration="vci", intorder=3),
+    "SCNI": dict(integration="scni"),
+    "SCNI α=1e-3": dict(integration="scni", stabilization=1e-3),
+    "DNI": dict(integration="dni"),
+}
+TARGET_RATIO = 0.25
+
+
+def ring_problem(n, scheme):
+    """The ring section with ``n`` x ``2n/3`` cells and its solid problem."""
+    from skfem_rkpm import RKBasis
+    from skfem_rkpm.mechanics.materials import J2Material, perfect
+    from skfem_rkpm.mechanics.problem import SolidProblem
+    from skfem_rkpm.meshes import rectangle
+
+    mesh = rectangle(30.0, 20.0, n, max(2 * n // 3, 2), origin=(30.0, 0.0))
+    spacing = 30.0 / n
+    basis = RKBasis(mesh, vector=True, radius=3.0 * spacing, support_shape="box",
+                    axisymmetric=True, **SCHEMES[scheme])
+    return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), "axisymmetric")
+
+
+def compressed(problem, reduction=0.3, noise=1e-3, seed=0):
+    """Coefficients of a homogeneous compression by ``reduction`` (isochoric
+    radial growth) with a random perturbation of ``noise`` x the spacing."""
+    X = problem.basis.nodes
+    stretch = 1.0 - reduction
+    u = np.stack([(1 / np.sqrt(stretch) - 1) * X[0], (stretch - 1) * X[1]])
+    h = np.ptp(X[0]) / (len(np.unique(X[0])) - 1)
+    u += noise * h * np.random.default_rng(seed).uniform(-1, 1, u.shape)
+    return u.T.ravel()  # linear fields: coefficients = nodal values (close enough)
+
+
+def fastest(fn, repeat):
+    fn()
+    best = np.inf
+    for _ in range(repeat):
+        start = time.process_time()
+        fn()
+        best = min(best, time.process_time() - start)
+    return 1e3 * best
+
+
+def time_iteration(n, scheme, repeat):
+    from skfem_rkpm.mechanics.kinematics import deformation_gradient, from_entries
+
+    start = time.process_time()
+    problem = ring_problem(n, scheme)
+    setup = time.process_time() - start
+    d = compressed(problem)
+    asm = problem.assembler
+    F = deformation_gradient(asm.gradient(d), problem.model)
+    P, _, _, A = problem.material.update(F, problem.state, entries=problem.entries)
+    P_ext, A_ext = from_entries(problem._at_entries(P), A, problem.model, problem.shape)
+    S = problem.stabilization
+
+    def assembly():
+        f = asm.linear(P_ext)
+        K = asm.matrix(asm.local_bilinear(A_ext))
+        if S is not None:
+            f, K = f + S @ d, K + S
+        return f, K
+
+    ev = problem.evaluate(d)
+    return dict(
+        particles=problem.basis.nnodes, points=problem.npoints,
+        plastic=100 * np.mean(ev.state.alpha > 0), setup=1e3 * setup,
+        material=fastest(lambda: problem.material.update(
+            F, problem.state, entries=problem.entries), repeat),
+        assembly=fastest(assembly, repeat),
+        evaluate=fastest(lambda: problem.evaluate(d), repeat),
+        pairs=int(np.sum(problem.assembler.layout.element_nodes.shape[0]
+                         * problem.assembler.layout.dx.shape[0])),
+    )
+
+
+def beam_errors(level, scheme):
+    """Energy and L² errors of Timoshenko's beam, measured on 4x4 Gauss points."""
+    from skfem import LinearForm, asm
+    from skfem.helpers import dot
+
+    from skfem_rkpm import Assembler, RKBasis, isotropic_tangent, solve
+    from skfem_rkpm.approximation.nodal_integration import stabilization_matrix
+    from skfem_rkpm.assembly import facet_basis
+    from skfem_rkpm.verification import timoshenko_beam
+    from skfem_rkpm.verification.elasticity import (error_norms, lame,
+                                                    stress_from_voigt)
+    from skfem_rkpm.verification.studies import rigid_motion_dofs
+
+    problem = timoshenko_beam()
+    mesh = problem.mesh(level)
+    keywords = dict(SCHEMES[scheme])
+    keywords.setdefault("intorder", 4)
+    basis = RKBasis(mesh, vector=True, support=2.0, **keywords)
+    lam, mu = lame(problem.E, problem.nu, problem.plane)
+    C = isotropic_tangent(lam, mu, 2)
+    K = Assembler(basis).bilinear(C)
+    if basis.stabilization:
+        K = K + basis.stabilization * stabilization_matrix(basis.nodal_quadrature, C, 2)
+
+    @LinearForm
+    def traction(v, w):
+        sig = stress_from_voigt(problem.stress(np.asarray(w.x)))
+        return dot(np.einsum("ij...,j...->i...", sig, w.n), v)
+
+    f = asm(traction, facet_basis(basis))
+    nodes = basis.doflocs[:, ::2]
+    D = rigid_motion_dofs(nodes)
+    d = solve(K, f, basis, D=D, x=problem.displacement(nodes).T.ravel()[D])
+    judge = RKBasis(mesh, vector=True, support=2.0, integration="gauss", intorder=7)
+    return error_norms(judge, d, problem.displacement, problem.stress, problem.E,
+                       problem.nu, problem.plane, modulo_rigid=True)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[15, 30, 60])
+    parser.add_argument("--levels", type=int, nargs="+", default=[2, 4, 8])
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    print(f"load: {os.getloadavg()[0]:.1f} (1-minute average, 2 cores)\n")
+    print("Ring section compressed 30 % (every point plastic); CPU ms, fastest of "
+          f"{args.repeat}:\n")
+    print("| cells (radial) | scheme | particles | material points | pair entries | "
+          "material ms | assembly ms | material + assembly ms | / Gauss+VCI 4x4 | "
+          "evaluate ms | setup ms |")
+    print("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for n in args.sizes:
+        rows = {s: time_iteration(n, s, args.repeat) for s in SCHEMES}
+        ref = rows["Gauss+VCI 4x4"]["material"] + rows["Gauss+VCI 4x4"]["assembly"]
+        for s, r in rows.items():
+            both = r["material"] + r["assembly"]
+            print(f"| {n} | {s} | {r['particles']} | {r['points']} | {r['pairs']} | "
+                  f"{r['material']:.1f} | {r['assembly']:.1f} | {both:.1f} | "
+                  f"{both / ref:.3f} | {r['evaluate']:.1f} | {r['setup']:.0f} |")
+    print(f"\nTarget: SCNI material + assembly at most {TARGET_RATIO:g} of Gauss+VCI 4x4.\n")
+    print("Timoshenko beam (support 2), errors on 4x4 Gauss points:\n")
+    print("| level | scheme | particles | energy error | L2 error |")
+    print("|---:|---|---:|---:|---:|")
+    for level in args.levels:
+        for s in SCHEMES:
+            l2, energy = beam_errors(level, s)
+            n = (4 * level + 1) * (level + 1)
+            print(f"| {level} | {s} | {n} | {energy:.3e} | {l2:.3e} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,11 +1,18 @@
 """Cost of one Newton iteration with nodal integration (SCNI, DNI) against
 Gauss+VCI at equal particles, with the accuracy of each beside it.
 
-Part 1, cost.  The ring section of ``scenes/ring.toml`` (axisymmetric, r from
-30 to 60 mm, z from 0 to 20 mm, box supports of 3 spacings, J2 perfect
-plasticity) at several particle counts, compressed homogeneously by 30 %
-(every point on the plastic branch, the costly path of the return map) plus
-a small random perturbation.  Timed per scheme, fastest of ``--repeat``
+Part 1, cost.  Two cases at several particle counts:
+
+* ``ring``: the ring section of ``scenes/ring.toml`` (axisymmetric, r from 30
+  to 60 mm, z from 0 to 20 mm, box supports of 3 spacings, 4 x 4 Gauss
+  points per cell for Gauss+VCI);
+* ``square``: a plane strain unit square with the RKBasis defaults (radial
+  support 2 spacings, Gauss degree 4: 3 x 3 points per cell), as in
+  ``benchmarks/newton_iteration.py``;
+
+both J2 perfectly plastic (E = 288e3, σ_y = 100), compressed homogeneously
+by 30 % (every point on the plastic branch, the costly path of the return
+map) plus a small random perturbation.  Timed per scheme, fastest of ``--repeat``
 (CPU time, ``time.process_time``, one BLAS thread):
 
 * *material*: ``J2Material.update`` at every material point;
@@ -39,28 +46,38 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-SCHEMES = {  # label: RKBasis keywords
-    "Gauss+VCI 4x4": dict(integration="vci", intorder=7),
+SCHEMES = {  # label: RKBasis keywords (Gauss rule: the case's)
+    "Gauss+VCI": dict(integration="vci"),
     "Gauss+VCI 2x2": dict(integration="vci", intorder=3),
     "SCNI": dict(integration="scni"),
     "SCNI α=1e-3": dict(integration="scni", stabilization=1e-3),
     "DNI": dict(integration="dni"),
 }
+CASES = {  # name: (axisymmetric, support shape, support in spacings, Gauss degree)
+    "ring": (True, "box", 3.0, 7),
+    "square": (False, "radial", 2.0, 4),
+}
 TARGET_RATIO = 0.25
 
 
-def ring_problem(n, scheme):
-    """The ring section with ``n`` x ``2n/3`` cells and its solid problem."""
+def solid_problem(case, n, scheme):
+    """The case's solid problem with ``n`` cells across (radially)."""
     from skfem_rkpm import RKBasis
     from skfem_rkpm.mechanics.materials import J2Material, perfect
     from skfem_rkpm.mechanics.problem import SolidProblem
     from skfem_rkpm.meshes import rectangle
 
-    mesh = rectangle(30.0, 20.0, n, max(2 * n // 3, 2), origin=(30.0, 0.0))
-    spacing = 30.0 / n
-    basis = RKBasis(mesh, vector=True, radius=3.0 * spacing, support_shape="box",
-                    axisymmetric=True, **SCHEMES[scheme])
-    return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), "axisymmetric")
+    axisymmetric, shape, support, intorder = CASES[case]
+    if axisymmetric:
+        mesh = rectangle(30.0, 20.0, n, max(2 * n // 3, 2), origin=(30.0, 0.0))
+        spacing = 30.0 / n
+    else:
+        mesh, spacing = rectangle(1.0, 1.0, n, n), 1.0 / n
+    keywords = dict(intorder=intorder, **SCHEMES[scheme])
+    basis = RKBasis(mesh, vector=True, radius=support * spacing, support_shape=shape,
+                    axisymmetric=axisymmetric, **keywords)
+    model = "axisymmetric" if axisymmetric else "plane_strain"
+    return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), model)
 
 
 def compressed(problem, reduction=0.3, noise=1e-3, seed=0):
@@ -84,11 +101,11 @@ def fastest(fn, repeat):
     return 1e3 * best
 
 
-def time_iteration(n, scheme, repeat):
+def time_iteration(case, n, scheme, repeat):
     from skfem_rkpm.mechanics.kinematics import deformation_gradient, from_entries
 
     start = time.process_time()
-    problem = ring_problem(n, scheme)
+    problem = solid_problem(case, n, scheme)
     setup = time.process_time() - start
     d = compressed(problem)
     asm = problem.assembler
@@ -112,8 +129,7 @@ def time_iteration(n, scheme, repeat):
             F, problem.state, entries=problem.entries), repeat),
         assembly=fastest(assembly, repeat),
         evaluate=fastest(lambda: problem.evaluate(d), repeat),
-        pairs=int(np.sum(problem.assembler.layout.element_nodes.shape[0]
-                         * problem.assembler.layout.dx.shape[0])),
+        pairs=int(np.prod(problem.assembler.layout.element_nodes.shape)),
     )
 
 
@@ -132,9 +148,7 @@ def beam_errors(level, scheme):
 
     problem = timoshenko_beam()
     mesh = problem.mesh(level)
-    keywords = dict(SCHEMES[scheme])
-    keywords.setdefault("intorder", 4)
-    basis = RKBasis(mesh, vector=True, support=2.0, **keywords)
+    basis = RKBasis(mesh, vector=True, support=2.0, **SCHEMES[scheme])
     lam, mu = lame(problem.E, problem.nu, problem.plane)
     C = isotropic_tangent(lam, mu, 2)
     K = Assembler(basis).bilinear(C)
@@ -158,26 +172,28 @@ def beam_errors(level, scheme):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[15, 30, 60])
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     parser.add_argument("--levels", type=int, nargs="+", default=[2, 4, 8])
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
     print(f"load: {os.getloadavg()[0]:.1f} (1-minute average, 2 cores)\n")
-    print("Ring section compressed 30 % (every point plastic); CPU ms, fastest of "
+    print("Compressed 30 % (every point plastic); CPU ms, fastest of "
           f"{args.repeat}:\n")
-    print("| cells (radial) | scheme | particles | material points | pair entries | "
-          "material ms | assembly ms | material + assembly ms | / Gauss+VCI 4x4 | "
+    print("| case | scheme | particles | material points | local functions | "
+          "material ms | assembly ms | material + assembly ms | / Gauss+VCI | "
           "evaluate ms | setup ms |")
-    print("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for n in args.sizes:
-        rows = {s: time_iteration(n, s, args.repeat) for s in SCHEMES}
-        ref = rows["Gauss+VCI 4x4"]["material"] + rows["Gauss+VCI 4x4"]["assembly"]
-        for s, r in rows.items():
-            both = r["material"] + r["assembly"]
-            print(f"| {n} | {s} | {r['particles']} | {r['points']} | {r['pairs']} | "
-                  f"{r['material']:.1f} | {r['assembly']:.1f} | {both:.1f} | "
-                  f"{both / ref:.3f} | {r['evaluate']:.1f} | {r['setup']:.0f} |")
-    print(f"\nTarget: SCNI material + assembly at most {TARGET_RATIO:g} of Gauss+VCI 4x4.\n")
-    print("Timoshenko beam (support 2), errors on 4x4 Gauss points:\n")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for case in args.cases:
+        for n in args.sizes:
+            rows = {s: time_iteration(case, n, s, args.repeat) for s in SCHEMES}
+            ref = rows["Gauss+VCI"]["material"] + rows["Gauss+VCI"]["assembly"]
+            for s, r in rows.items():
+                both = r["material"] + r["assembly"]
+                print(f"| {case} | {s} | {r['particles']} | {r['points']} | {r['pairs']} | "
+                      f"{r['material']:.1f} | {r['assembly']:.1f} | {both:.1f} | "
+                      f"{both / ref:.3f} | {r['evaluate']:.1f} | {r['setup']:.0f} |")
+    print(f"\nTarget: SCNI material + assembly at most {TARGET_RATIO:g} of Gauss+VCI.\n")
+    print("Timoshenko beam (support 2, Gauss degree 4), errors on 4x4 Gauss points:\n")
     print("| level | scheme | particles | energy error | L2 error |")
     print("|---:|---|---:|---:|---:|")
     for level in args.levels:

@@ -46,7 +46,7 @@ class Key:
 
 
 #: α of the modified SCNI stabilization when a scene does not give one
-DEFAULT_STABILIZATION = 1.0
+DEFAULT_STABILIZATION = 1e-3
 
 
 SCHEMA = {

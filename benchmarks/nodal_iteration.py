@@ -73,7 +73,7 @@ def solid_problem(case, n, scheme):
         spacing = 30.0 / n
     else:
         mesh, spacing = rectangle(1.0, 1.0, n, n), 1.0 / n
-    keywords = dict(intorder=intorder, **SCHEMES[scheme])
+    keywords = {"intorder": intorder, **SCHEMES[scheme]}
     basis = RKBasis(mesh, vector=True, radius=support * spacing, support_shape=shape,
                     axisymmetric=axisymmetric, **keywords)
     model = "axisymmetric" if axisymmetric else "plane_strain"

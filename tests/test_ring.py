@@ -143,6 +143,10 @@ def test_scni_scene_puts_the_material_points_at_the_particles():
     plain = load_scene(builtin_scenes()["ring"], [*COARSE, 'discretization.integration="scni"',
                                                   "discretization.stabilization=0.0"])
     assert build(plain, "rkpm").problem.stabilization is None
+    # F-bar averages over a cell; with one point per particle it is skipped
+    stick = load_scene(builtin_scenes()["ring"], [*COARSE, 'discretization.integration="scni"',
+                                                  "tools.platen.friction=stick"])
+    assert build(stick, "rkpm").problem.locking is None
     wrong = load_scene(builtin_scenes()["ring"], [*COARSE, "discretization.stabilization=0.1"])
     with pytest.raises(SceneError, match="only for integration"):
         build(wrong, "rkpm")

@@ -8,7 +8,7 @@ pieces tile every mesh cell exactly, so the cells tile the domain and two
 neighbours share their whole common boundary.
 
 Stabilized conforming nodal integration (SCNI; Chen, Wu, Yoon & You 2001,
-IJNME 50, Eq. 21-22; finite strain: Chen, Yoon & Wu 2002, IJNME 53) replaces
+IJNME 50; finite strain: Chen, Yoon & Wu 2002, IJNME 53) replaces
 the material gradient at the particle by its average over the cell, turned
 into a boundary integral by the divergence theorem,
 
@@ -251,7 +251,7 @@ def smoothing_cells(mesh, npoints=2):
 
 def smoothed_gradients(cells, segment_values, axisymmetric=False, piece_values=None,
                        piece_x=None, piece_w=None):
-    """Boundary integrals of the shape functions over pieces (SCNI, Eq. 21).
+    """Boundary integrals of the shape functions over pieces (SCNI).
 
     Parameters
     ----------
@@ -436,7 +436,7 @@ def _as_csr(table, nnodes):
 def stabilization_matrix(quadrature, C, ncomp):
     """Modified SCNI stabilization ``Σ_k w_k (B_k - B_L)ᵀ C (B_k - B_L)``.
 
-    Puso, Chen, Zywicz & Elmer (2008), IJNME 74, Eq. 27 with the piece
+    Puso, Chen, Zywicz & Elmer (2008), IJNME 74, with the piece
     (sub-cell) gradients of the smoothing cells; the factor ``α`` is applied
     by the caller.  Only the in-plane gradient enters (no hoop row in
     axisymmetric models).

@@ -96,6 +96,8 @@ def build(scene, method=None, trust_geo=False):
         linear_fem = method == "fem" and disc["element"] in ("quad1", "tri1")
         locking = "fbar" if linear_fem or (method != "fem" and sticks) else "none"
     locking = None if locking == "none" else locking
+    if method == "rkpm" and disc["integration"] in ("scni", "dni"):
+        locking = None  # F-bar averages over a cell: one point per particle, nothing to do
     problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
 
     prescribed, loads, followers = [], [], []

@@ -106,7 +106,8 @@ SCHEMA = {
         "locking": Key("str", "none", choices=("none", "fbar", "auto"),
                        doc="volumetric locking control; auto: F-bar for linear FEM "
                            "elements, and for RKPM only when a tool sticks (sliding, "
-                           "RKPM runs better without; see docs/ring.md)"),
+                           "RKPM runs better without; see docs/ring.md); ignored with "
+                           "nodal integration"),
     },
     "material": {
         "E": Key("float", required=True, check=_positive, doc="Young's modulus"),

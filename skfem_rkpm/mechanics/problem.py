@@ -91,6 +91,7 @@ class SolidProblem:
         self._cols = np.array([J for _, J in self.entries])
         self._local = None  # local tangent matrices, reused by every evaluation
         self.stabilization = self._stabilization_matrix()
+        self._stabilization_slots = None  # where K_stab's entries sit in the tangent
 
     def _stabilization_matrix(self):
         """``α K_stab`` of a stabilized SCNI basis with the elastic moduli, or None."""
@@ -101,9 +102,11 @@ class SolidProblem:
         mu = m.E / (2.0 * (1.0 + m.nu))
         lam = m.E * m.nu / ((1.0 + m.nu) * (1.0 - 2.0 * m.nu))
         dim = self.basis.nodes.shape[0]
-        return alpha * stabilization_matrix(self.basis.nodal_quadrature,
-                                            isotropic_tangent(lam, mu, dim),
-                                            self.basis.ncomp)
+        S = alpha * stabilization_matrix(self.basis.nodal_quadrature,
+                                         isotropic_tangent(lam, mu, dim), self.basis.ncomp)
+        S.sum_duplicates()
+        S.sort_indices()
+        return S
 
     @property
     def N(self):
@@ -142,8 +145,30 @@ class SolidProblem:
         if self.stabilization is not None:
             evaluation.f_int = evaluation.f_int + self.stabilization @ np.asarray(d)
             if evaluation.K is not None:
-                evaluation.K = evaluation.K + self.stabilization
+                evaluation.K = self._add_stabilization(evaluation.K)
         return evaluation
+
+    def _add_stabilization(self, K):
+        """``K + α K_stab``, in place in ``K``'s sparsity pattern when it holds
+        the stabilization's (found once; a general sparse sum otherwise)."""
+        S = self.stabilization
+        if self._stabilization_slots is None:
+            # the tangent's pattern is the assembler's, the same every time
+            # (its index arrays are shared with the assembler: not sorted here)
+            n = K.shape[1]
+            rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr)).astype(np.int64)
+            keys = rows * n + K.indices
+            order = np.argsort(keys, kind="stable")
+            S_rows = np.repeat(np.arange(S.shape[0]), np.diff(S.indptr)).astype(np.int64)
+            wanted = S_rows * n + S.indices
+            found = np.minimum(np.searchsorted(keys[order], wanted), len(keys) - 1)
+            slots = order[found]
+            self._stabilization_slots = (slots if np.array_equal(keys[slots], wanted)
+                                         else False)
+        if self._stabilization_slots is False:
+            return K + S
+        K.data[self._stabilization_slots] += S.data
+        return K
 
     def _update(self, F, state, tangent):
         """``material.update`` with failures named by quadrature point."""

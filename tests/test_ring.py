@@ -150,3 +150,28 @@ def test_scni_scene_puts_the_material_points_at_the_particles():
     wrong = load_scene(builtin_scenes()["ring"], [*COARSE, "discretization.stabilization=0.1"])
     with pytest.raises(SceneError, match="only for integration"):
         build(wrong, "rkpm")
+
+
+def test_scni_run_writes_its_fields_at_the_particles(tmp_path):
+    """With nodal integration the material points are the particles: stress and
+    plastic strain go to the XDMF file as point data, and the figures colour
+    the particles by their own plastic strain."""
+    import meshio
+
+    from skfem_rkpm.runs.plot import nodal_plastic_strain, save_run_figures
+
+    scene = load_scene(builtin_scenes()["ring"],
+                       [*COARSE, 'discretization.integration="scni"', "output.fields=true",
+                        "steps.count=2", "tools.platen.motion=[0.0,-2.0]"])
+    sim = build(scene, "rkpm")
+    result = run(sim, tmp_path, progress=False)
+    assert result.completed
+    save_run_figures(sim, result, tmp_path)
+    assert (tmp_path / "deformed.png").stat().st_size > 0
+    np.testing.assert_array_equal(nodal_plastic_strain(sim.problem), sim.problem.state.alpha)
+    with meshio.xdmf.TimeSeriesReader(tmp_path / "fields.xdmf") as reader:
+        points, cells = reader.read_points_cells()
+        _, point_data, cell_data = reader.read_data(reader.num_steps - 1)
+    assert len(points) == sim.basis.nnodes
+    np.testing.assert_allclose(point_data["plastic_strain"], sim.problem.state.alpha)
+    assert point_data["stress"].shape == (sim.basis.nnodes, 9)

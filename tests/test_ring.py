@@ -175,3 +175,20 @@ def test_scni_run_writes_its_fields_at_the_particles(tmp_path):
     assert len(points) == sim.basis.nnodes
     np.testing.assert_allclose(point_data["plastic_strain"], sim.problem.state.alpha)
     assert point_data["stress"].shape == (sim.basis.nnodes, 9)
+
+
+@pytest.mark.slow
+def test_paper_ring_with_scni_matches_gauss_vci():
+    """μ = 0.15 to 50 % at the paper's particles: SCNI (scene default α = 1e-3)
+    against Gauss+VCI on the same particles, the issue's targets of 1 point in
+    the inner-diameter change and 2 % in the platen force (measured 0.40 points,
+    1.3 %; see docs/nodal_integration.md)."""
+    results = {}
+    for integration in ("vci", "scni"):
+        result = paper_ring("rkpm", "0.15", f'discretization.integration="{integration}"')
+        assert result.completed, result.message
+        results[integration] = (100 * (result.gauges[-1]["inner_mid x"] - 30.0) / 30.0,
+                                -result.history[-1].reactions["platen"][1])
+    (id_vci, force_vci), (id_scni, force_scni) = results["vci"], results["scni"]
+    assert abs(id_scni - id_vci) < 1.0
+    assert force_scni == pytest.approx(force_vci, rel=0.02)

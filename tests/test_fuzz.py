@@ -287,7 +287,7 @@ def test_random_bytes_scene_file(tmp_path_factory, data):
     ("output.points=3", "output.points: must be a table of points"),
     ('output.points={a = "x"}', "output.points: must be a table of points"),
     ('model.type="3d"', 'model.type: "3d" needs a 3D mesh'),
-    ('material.hardening="linear"\nH = 1e309', "material.H: must be finite"),
+    ("material.H=1e309", "material.H: must be finite"),
 ])
 def test_bugs_found_by_fuzzing_are_scene_errors(setting, message):
     """Each of these once passed the reader (and then crashed or built a

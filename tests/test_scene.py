@@ -121,3 +121,29 @@ def test_tool_slave_boundary_missing_from_the_mesh_names_the_tool():
     with pytest.raises(SceneError, match=r"\[tools.platen\] slaves: the mesh has no "
                        r"boundary 'nose'; it has \['bottom', 'left', 'right', 'top'\]"):
         build(scene, "fem")
+
+
+@pytest.mark.parametrize("setting, message", [
+    # once appended at the end of the file: "line 50 of a 49-line file", filed
+    # under [output]
+    ("foo=1", "--set 'foo=1': unknown key 'foo': give SECTION.KEY"),
+    ("model.foo=1", "--set 'model.foo=1': unknown key 'model.foo'; known keys of "
+                    "[model]: method, title, type"),
+    ("solver.tolerance=1", "unknown section 'solver' in 'solver.tolerance'"),
+    ("tools.friction=0.1", "'tools.friction' names no tools: give tools.NAME.KEY, e.g. "
+                           "tools.platen.friction"),
+    # once inserted a new table into the scene
+    ("model.title=a\n[tools.x]\nkind=1", "a value must be one line"),
+    ("model.title=a\r\nb", "a value must be one line"),
+])
+def test_settings_with_unknown_keys_or_line_breaks_are_refused(setting, message):
+    ring = builtin_scenes()["ring"]
+    with pytest.raises(SceneError) as info:
+        load_scene(ring, [setting])
+    assert message in str(info.value)
+    assert ", line " not in str(info.value)  # no line of the scene file is blamed
+
+
+def test_settings_for_a_new_tool_or_boundary_add_its_table():
+    text = apply_setting(GOOD, "boundary.left.fix=[\"x\"]")
+    assert parse_scene(text)["boundary.left"]["fix"] == ["x"]

@@ -425,10 +425,17 @@ def apply_setting(text, setting):
 
     The value is read as TOML (numbers, booleans, arrays, quoted strings);
     anything else is taken as a string.  Missing tables and keys are added.
+    The key must be one of :data:`SCHEMA` (``SECTION.KEY`` or
+    ``tools.NAME.KEY``, ``boundary.NAME.KEY``) and the value one line:
+    otherwise a :class:`SceneError` names the setting.
     """
     if "=" not in setting:
         raise SceneError(f"--set {setting!r}: expected key=value")
+    if "\n" in setting or "\r" in setting:
+        raise SceneError(f"--set {setting!r}: a value must be one line (it would add "
+                         f"lines to the scene file); give each key its own --set")
     path, value = (s.strip() for s in setting.split("=", 1))
+    _check_setting_key(path, setting)
     try:
         tomllib.loads(f"v = {value}")
     except tomllib.TOMLDecodeError:
@@ -454,6 +461,27 @@ def apply_setting(text, setting):
         if not done:
             out += ["", f"[{table}]", f"{key} = {value}"] if table else [f"{key} = {value}"]
     return "\n".join(out) + "\n"
+
+
+def _check_setting_key(path, setting):
+    """SceneError unless ``path`` names a key of :data:`SCHEMA`."""
+    *tables, key = path.split(".")
+    table = ".".join(tables)
+    sections = sorted(s.replace(".*", ".NAME") for s in SCHEMA)
+    if not tables:
+        raise SceneError(f"--set {setting!r}: unknown key {path!r}: give SECTION.KEY, e.g. "
+                         f"tools.platen.friction; sections: {', '.join(sections)}")
+    schema = _schema_for(table)
+    if schema is None:
+        if f"{table}.*" in SCHEMA:
+            example = {"tools": "platen", "boundary": "bottom"}[table]
+            raise SceneError(f"--set {setting!r}: {path!r} names no {table}: give "
+                             f"{table}.NAME.KEY, e.g. {table}.{example}.{key}")
+        raise SceneError(f"--set {setting!r}: unknown section {table!r} in {path!r}; "
+                         f"sections: {', '.join(sections)}")
+    if key not in schema:
+        raise SceneError(f"--set {setting!r}: unknown key {path!r}; known keys of "
+                         f"[{table}]: {', '.join(sorted(schema))}")
 
 
 def schema_markdown():

@@ -20,7 +20,7 @@ from .problem import NonFiniteError
 from .slave_points import slave_points
 from .tools import Tool
 
-__all__ = ["RigidContact"]
+__all__ = ["RigidContact", "ToolSideError"]
 
 def _outer(a, b):
     return np.einsum("ni,nj->nij", a, b)
@@ -105,13 +105,51 @@ def _touch_fraction(gap, previous_gap, was_active):
     return phi, dphi
 
 
-def _warn_if_out_of_reach(tool, X, samples=21):
+class ToolSideError(ValueError):
+    """A tool starts with the part on its back side: every slave point behind
+    its surface at t = 0, deeper than the particle spacing somewhere (its
+    normal or orientation is the wrong way round).  ``what`` names the
+    tool's data to change, ``fix`` how, ``detail`` the gaps found."""
+
+    def __init__(self, what, fix, detail, name):
+        super().__init__(f"the {what} of tool {name!r} {fix} ({detail})")
+        self.what, self.fix, self.detail = what, fix, detail
+
+
+def _check_initial_side(tool, X, spacing):
+    """Raise :class:`ToolSideError` if the tool starts on the wrong side of
+    the reference slave points ``X``: none has a positive gap at t = 0 and
+    the deepest is behind the surface by more than the particle ``spacing``
+    (a part that merely touches a tool has gaps of 0; a real initial
+    overlap of a whole spacing or more is not a forming set-up either)."""
+    gap = tool.project(X, 0.0).gap
+    tol = 1e-9 * spacing
+    if gap.max() > tol or gap.min() >= -spacing:
+        return
+    from .tools import Arc, Platen
+
+    if isinstance(tool, Platen):
+        what, fix = "normal", "points away from the part; flip it"
+    elif isinstance(tool, Arc):
+        what, fix = "angles", ("run the wrong way (the part must be on the arc's left); "
+                               "swap start and end")
+    else:
+        what, fix = "points", ("run the wrong way (the part must be on their left); "
+                               "reverse their order")
+    raise ToolSideError(what, fix, f"at t = 0 all {gap.size} slave points are behind its "
+                        f"surface, up to {-gap.min():.4g} deep, "
+                        f"{-gap.min() / spacing:.3g} particle spacings", tool.name)
+
+
+def _warn_if_out_of_reach(tool, X, spacing, samples=21):
     """Warn if ``tool`` stays clear of the reference points ``X`` at every
     load factor of ``[0, 1]`` (sampled): a misplaced tool or a motion in the
-    wrong direction.  Only a warning: loads may still deform the part onto it."""
+    wrong direction; or if it starts in contact (a gap within 1e-9 of the
+    particle ``spacing``) and its gap only grows: a motion away from the
+    part.  Only warnings: loads may still deform the part onto it."""
     import warnings
 
-    gaps = [tool.project(X, t).gap.min() for t in np.linspace(0.0, 1.0, samples)]
+    gaps = np.array([tool.project(X, t).gap.min() for t in np.linspace(0.0, 1.0, samples)])
     k = int(np.argmin(gaps))
     if gaps[k] > 0:
         warnings.warn(f"tool {tool.name!r} does not reach the part during its motion: the "
@@ -119,6 +157,13 @@ def _warn_if_out_of_reach(tool, X, samples=21):
                       f"(at t = {k / (samples - 1):g}); unless other loads deform the part "
                       "onto it, it carries no force; check its position and motion",
                       stacklevel=3)
+    elif (gaps[0] <= 1e-9 * spacing and np.all(np.diff(gaps) >= 0)
+          and gaps[-1] > 1e-9 * spacing):
+        warnings.warn(f"tool {tool.name!r} starts in contact with the part and moves away "
+                      f"from it: the smallest gap to the undeformed slave boundary grows "
+                      f"from {gaps[0]:.4g} at t = 0 to {gaps[-1]:.4g} at t = 1; unless "
+                      "other loads push the part after it, it carries no force; check the "
+                      "sign of its motion", stacklevel=3)
 
 
 def _check_finite_traction(traction, X, name):
@@ -201,7 +246,8 @@ class RigidContact:
         self.tolerance = _positive(tolerance, "augmented Lagrangian tolerance")
         self.state = self.trial = self._initial_state()
         self.restart()
-        _warn_if_out_of_reach(tool, self.points.X)
+        _check_initial_side(tool, self.points.X, self.points.spacing)
+        _warn_if_out_of_reach(tool, self.points.X, self.points.spacing)
 
     def _initial_state(self):
         X, m = self.points.X, self.points.m

@@ -17,7 +17,7 @@ from ..mechanics.force_control import ForceDrivenContact
 from ..mechanics.loads import BoundaryLoads, FollowerPressure, History, Pressure, Traction
 from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR
 from ..mechanics.problem import SolidProblem
-from ..mechanics.rigid_contact import RigidContact
+from ..mechanics.rigid_contact import RigidContact, ToolSideError
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
 from .memory import check_rk_memory
@@ -177,12 +177,16 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     if problem.basis is not basis:
         raise ValueError("the basis must be the problem's basis")
     factor = section.get("penalty_factor")
-    contact = RigidContact(problem, tool, section.get("slaves"),
-                           section.get("friction", 0.0),
-                           section.get("collocation") or "nodal", section.get("penalty"),
-                           factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
-                           enforcement=section.get("enforcement") or "penalty",
-                           tolerance=section.get("tolerance") or DEFAULT_AUGMENTED_TOLERANCE)
+    try:
+        contact = RigidContact(problem, tool, section.get("slaves"),
+                               section.get("friction", 0.0),
+                               section.get("collocation") or "nodal", section.get("penalty"),
+                               factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
+                               enforcement=section.get("enforcement") or "penalty",
+                               tolerance=(section.get("tolerance")
+                                          or DEFAULT_AUGMENTED_TOLERANCE))
+    except ToolSideError as err:
+        raise SceneError(f"the {err.what} of tools.{name} {err.fix} ({err.detail})") from None
     if section.get("force") is None:
         return contact
     direction = section.get("direction") or section.get("normal")

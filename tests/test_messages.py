@@ -1,0 +1,66 @@
+"""Messages a user can act on: tools set up the wrong way round, a final
+state with inverted cells, the command line's help, and the figures and
+report of a run (labelled axes, units, the ring's calibration curve)."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import skfem_rkpm.runs.runner as runner
+from skfem_rkpm.runs.cli import main
+from skfem_rkpm.runs.scene import SceneError, builtin_scenes, load_scene
+
+SMALL = ["steps.count=6", "geometry.divisions=[6,4]", "discretization.support=12",
+         "output.figures=false"]
+RING = builtin_scenes()["ring"]
+
+
+def small_ring(*more):
+    return runner.build(load_scene(RING, SMALL + list(more)))
+
+
+def test_a_platen_normal_pointing_away_is_refused_at_build(tmp_path, capsys):
+    # before: the run started and every step failed with "det F = -7.3 <= 0"
+    args = ["run", "ring", *(f"--set={s}" for s in SMALL), "--set",
+            "tools.platen.normal=[0.0, 1.0]", "--out", str(tmp_path / "o"), "--quiet"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    # the slave points (top, left, right: 7 + 4 + 4 particles) lie 0 to 20 mm
+    # below the platen at y = 20; the particle spacing is 5 mm
+    assert err == ("error: the normal of tools.platen points away from the part; flip it "
+                   "(at t = 0 all 15 slave points are behind its surface, up to 20 deep, "
+                   "4 particle spacings)\n")
+    assert not (tmp_path / "o" / "history.csv").exists()
+
+
+def test_a_polyline_the_wrong_way_round_is_refused():
+    # a top die over the ring runs in -x (the part on its left, below it)
+    with pytest.raises(SceneError, match=r"the points of tools.platen run the wrong way "
+                                         r"\(the part must be on their left\); reverse "
+                                         r"their order"):
+        small_ring('tools.platen.kind="polyline"', "tools.platen.points=[[0, 20], [70, 20]]")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        small_ring('tools.platen.kind="polyline"', "tools.platen.points=[[70, 20], [0, 20]]")
+
+
+def test_a_tool_touching_the_part_at_the_start_need_not_be_wrong():
+    # the built-in ring: the platen touches the top at t = 0 (gaps 0 there)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        small_ring()
+
+
+def test_a_tool_that_starts_in_contact_and_moves_away_warns(tmp_path, capsys):
+    with pytest.warns(UserWarning, match=r"tool 'platen' starts in contact with the part "
+                                         r"and moves away from it: the smallest gap to the "
+                                         r"undeformed slave boundary grows from 0 at t = 0 "
+                                         r"to 10 at t = 1"):
+        small_ring("tools.platen.motion=[0.0, 10.0]")
+    args = ["run", "ring", *(f"--set={s}" for s in SMALL), "--set",
+            "tools.platen.motion=[0.0, 10.0]", "--out", str(tmp_path / "o"), "--quiet"]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("warning:")]
+    assert len(lines) == 1 and "moves away from it" in lines[0]

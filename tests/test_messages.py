@@ -64,3 +64,47 @@ def test_a_tool_that_starts_in_contact_and_moves_away_warns(tmp_path, capsys):
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if line.startswith("warning:")]
     assert len(lines) == 1 and "moves away from it" in lines[0]
+
+
+def test_corner_jacobians_are_det_F_of_q1_at_the_corners():
+    """Against scikit-fem's own Q1 deformation gradient evaluated at the
+    reference corners (a quadrature rule of the four corner points)."""
+    from skfem import Basis, ElementQuad1, ElementVector, MeshQuad
+
+    from skfem_rkpm.runs.io import corner_jacobians
+
+    mesh = MeshQuad.init_tensor(np.linspace(0, 2, 4), np.linspace(0, 1, 3))
+    corners = np.array([[0.0, 1.0, 1.0, 0.0], [0.0, 0.0, 1.0, 1.0]])  # order of mesh.t
+    basis = Basis(mesh, ElementVector(ElementQuad1()), quadrature=(corners, np.ones(4)))
+    rng = np.random.default_rng(3)
+    u = 0.4 * rng.standard_normal((mesh.nvertices, 2))  # folds some cells
+    d = u.ravel()  # skfem's vector dofs: (u_x, u_y) of vertex 0, then vertex 1, ...
+    grad = basis.interpolate(d).grad  # (2, 2, ncells, 4)
+    F = np.eye(2)[:, :, None, None] + grad
+    expected = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+    J = corner_jacobians(mesh, u)
+    assert (J < 0).any() and (J > 0).any()
+    np.testing.assert_allclose(J, expected, rtol=1e-12, atol=1e-12)  # round-off only
+
+
+def test_a_final_state_with_a_folded_cell_is_not_just_completed():
+    # before: the FEM ring said "completed" with a corner det F of -0.12
+    sim = small_ring()  # 6 x 4 cells of 5 x 5 mm; (60, 20) is the outer top corner
+    assert runner.final_state_message(sim, np.zeros(sim.basis.N)) == "completed"
+    from skfem_rkpm.runs.io import nodal_displacements
+
+    corner = int(np.flatnonzero((sim.mesh.p[0] == 60) & (sim.mesh.p[1] == 20))[0])
+    # RK coefficients are not vertex values: solve for coefficients whose
+    # vertex displacements move only that corner, to (52, 12), across the
+    # diagonal of its cell
+    u = np.zeros((sim.mesh.nvertices, 2))
+    u[corner] = [-8.0, -8.0]
+    A = np.column_stack([nodal_displacements(sim.basis, e).ravel()
+                         for e in np.eye(sim.basis.N)])
+    d = np.linalg.solve(A, u.ravel())
+    message = runner.final_state_message(sim, d)
+    # edges from (52, 12) to the neighbours (55, 20) and (60, 15): cross product
+    # 3 * 3 - 8 * 8 = -55 against 25 undeformed: det F = -2.2
+    assert message.startswith("completed with inverted cells: det F = -2.2 <= 0 at the "
+                              "corner X = (60, 20) of cell ")
+    assert "(1 of 24 cells folded)" in message

@@ -26,7 +26,7 @@ import numpy as np
 from ..solvers.newton import StepRecord
 from .folder import atomic_path, open_append, write_atomic
 
-__all__ = ["nodal_displacements", "cell_averages", "history_row", "write_history",
+__all__ = ["nodal_displacements", "corner_jacobians", "cell_averages", "history_row", "write_history",
            "HistoryFile", "record_to_json", "record_from_json", "FieldWriter"]
 
 #: XDMF topology of each scikit-fem mesh type
@@ -44,6 +44,31 @@ def nodal_displacements(basis, d):
                              "field with basis.probes(mesh.p) instead")
         return values
     return np.asarray(d)[: ncomp * nv].reshape(nv, ncomp)  # vertex dofs come first
+
+
+def corner_jacobians(mesh, u):
+    """In-plane ``det F`` at the corners of every cell of the mesh moved by
+    the vertex displacements ``u`` (nvertices, 2), shape (ncells, ncorners).
+
+    The ratio of the cross products of the two edges meeting at a corner,
+    deformed over undeformed: ``det F`` of the bilinear (quadrilateral) or
+    linear (triangle) map through the moved vertices, at the vertex.  For
+    Q1 and P1 elements this is the discretization's own ``det F`` there;
+    for RK particles and quadratic elements that of the cells drawn in
+    ``deformed.png``.  Negative: the cell is folded at that corner.
+    """
+    t = mesh.t[:mesh.refdom.nnodes]
+    X = mesh.p
+    x = X + np.asarray(u).T
+
+    def cross(points):
+        here = points[:, t]
+        after = points[:, np.roll(t, -1, axis=0)]
+        before = points[:, np.roll(t, 1, axis=0)]
+        a, b = after - here, before - here
+        return a[0] * b[1] - a[1] * b[0]
+
+    return (cross(x) / cross(X)).T
 
 
 def cell_averages(values, dx):

@@ -29,9 +29,11 @@ from ..solvers.petsc import is_root
 from .build import Simulation, build
 from .checkpoint import load_checkpoint, run_identity, save_checkpoint
 from .folder import RunFolder, open_append, write_atomic
-from .io import FieldWriter, HistoryFile, record_from_json, record_to_json
+from .io import (FieldWriter, HistoryFile, corner_jacobians, nodal_displacements,
+                 record_from_json, record_to_json)
 
-__all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text"]
+__all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text",
+           "final_state_message"]
 
 #: linear solvers that partition the rows by the dof locations
 DISTRIBUTED = ("petsc", "petsc-gamg")
@@ -238,9 +240,30 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver):
         bar.close()
     result.history = history
     result.gauges = rows
+    if result.completed:
+        result.message = final_state_message(sim, result.d)
     if folder is not None:
         folder.status(result.message)
     return result
+
+
+def final_state_message(sim, d):
+    """"completed", or "completed with inverted cells: …" naming the
+    corner with the smallest ``det F`` when a cell of the final state is
+    folded (:func:`~skfem_rkpm.runs.io.corner_jacobians`): Newton checks
+    ``det F`` at the quadrature points only, so a corner may fold while
+    every step converges."""
+    mesh = sim.basis.mesh
+    J = corner_jacobians(mesh, nodal_displacements(sim.basis, d))
+    bad = J <= 0
+    if not bad.any():
+        return "completed"
+    cell, corner = np.unravel_index(np.argmin(J), J.shape)
+    X = mesh.p[:, mesh.t[corner, cell]]
+    return (f"completed with inverted cells: det F = {J[cell, corner]:.3g} <= 0 at the "
+            f"corner X = ({X[0]:.4g}, {X[1]:.4g}) of cell {cell} ({int(bad.any(axis=1).sum())} "
+            f"of {J.shape[0]} cells folded); the final state is not a valid deformation: "
+            f"use more load steps, a finer mesh or another discretization")
 
 
 def scene_text(sim):

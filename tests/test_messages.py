@@ -108,3 +108,26 @@ def test_a_final_state_with_a_folded_cell_is_not_just_completed():
     assert message.startswith("completed with inverted cells: det F = -2.2 <= 0 at the "
                               "corner X = (60, 20) of cell ")
     assert "(1 of 24 cells folded)" in message
+
+
+@pytest.mark.parametrize("command, default", [
+    ("run", "results/SCENE-METHOD"), ("compare", "results/SCENE-compare"),
+    ("sweep", "results/SCENE-sweep")])
+def test_help_is_plain_text_and_names_the_default_folder(command, default, capsys):
+    from pathlib import Path
+
+    from skfem_rkpm.runs.cli import _default_out
+
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    assert "`" not in text and ":func:" not in text and "``" not in text
+    assert f"default {default}" in text
+    method = "rkpm" if command == "run" else None
+    suffix = "" if command == "run" else f"-{command}"
+    scene = Path("ring.toml")
+    assert str(_default_out(scene, method, [], suffix)) == default.replace(
+        "SCENE", "ring").replace("METHOD", "rkpm")
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "`" not in capsys.readouterr().out

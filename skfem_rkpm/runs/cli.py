@@ -175,13 +175,14 @@ def main(argv=None):
                        help="let the scene's gmsh .geo file run programs or read and "
                             "write other files (refused otherwise)")
         if name == "run":
-            p.add_argument("--method", choices=("rkpm", "fem"))
+            p.add_argument("--method", choices=("rkpm", "fem"),
+                           help="discretization (default: the scene's model.method)")
             p.add_argument("--resume", action="store_true",
                            help="continue from the last finished step in --out")
             p.add_argument("--solver", choices=("auto", *BACKENDS),
                            help="linear solver (default: the scene's steps.solver, auto); "
                                 "petsc and petsc-gamg distribute the solve over the ranks "
-                                "of `mpiexec -n P skfem-rkpm run ...`")
+                                "of mpiexec -n P skfem-rkpm run ...")
         p.set_defaults(func=func)
     p = sub.add_parser("sweep", help="run every combination of scene values on "
                                      "dask.distributed (pip install skfem-rkpm[dask])")
@@ -191,7 +192,8 @@ def main(argv=None):
                         "several --vary give the Cartesian product")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value in every run")
-    p.add_argument("--method", choices=("rkpm", "fem"))
+    p.add_argument("--method", choices=("rkpm", "fem"),
+                   help="discretization (default: the scene's model.method)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="existing dask scheduler, e.g. tcp://host:8786 (default: a "
                         "local cluster)")

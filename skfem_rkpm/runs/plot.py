@@ -1,4 +1,8 @@
-"""Figures of a run: deformed particles coloured by plastic strain, force curves."""
+"""Figures of a run: deformed particles coloured by plastic strain
+(``deformed.png``), tool forces and reactions (``forces.png``) and, for a
+ring scene, the inner-diameter change against the height reduction
+(``calibration.png``).  Axes carry the scene's units (``model.length_unit``,
+``model.force_unit``)."""
 
 import matplotlib
 
@@ -8,7 +12,8 @@ import numpy as np  # noqa: E402
 
 from .io import cell_averages, nodal_displacements  # noqa: E402
 
-__all__ = ["nodal_plastic_strain", "plot_deformed", "plot_history", "save_run_figures"]
+__all__ = ["nodal_plastic_strain", "plot_deformed", "plot_history", "save_run_figures",
+           "height_reduction", "inner_diameter_change", "friction_text", "force_label"]
 
 
 def nodal_plastic_strain(problem):
@@ -24,8 +29,13 @@ def nodal_plastic_strain(problem):
     return total / np.maximum(count, 1)
 
 
-def plot_deformed(ax, problem, d, title="", vmax=None, show_cells=True):
-    """Particles at their current positions coloured by ε̄ᵖ, over the deformed cells."""
+def _axis_names(scene):
+    return ("r", "z") if scene["model"]["type"] == "axisymmetric" else ("x", "y")
+
+
+def plot_deformed(ax, problem, d, title="", vmax=None, show_cells=True, scene=None):
+    """Particles at their current positions coloured by ε̄ᵖ, over the deformed
+    cells; with ``scene`` the axes are labelled in its length unit."""
     mesh = problem.basis.mesh
     x = mesh.p + nodal_displacements(problem.basis, d).T
     if show_cells:
@@ -36,38 +46,147 @@ def plot_deformed(ax, problem, d, title="", vmax=None, show_cells=True):
                      vmin=0.0, vmax=vmax, zorder=2)
     ax.set_aspect("equal")
     ax.set_title(title)
+    if scene is not None:
+        unit = scene["model"]["length_unit"]
+        names = _axis_names(scene)
+        ax.set_xlabel(f"{names[0]} ({unit})")
+        ax.set_ylabel(f"{names[1]} ({unit})")
     return art
 
 
-def plot_history(ax, history, key, label, scale=1.0):
-    """A reaction (or gauge) of every step against the load factor."""
-    t = [r.t for r in history]
+def _moving_tools(scene):
+    """``{name: motion}`` of the tools with a prescribed motion."""
+    return {name.split(".", 1)[1]: np.asarray(section["motion"] or (0.0, 0.0), float)
+            for name, section in scene.items()
+            if name.startswith("tools.") and np.any(section["motion"] or (0.0, 0.0))}
+
+
+def height_reduction(sim, t):
+    """Height reduction in percent at load factors ``t``: the travel of the
+    moving tools along the first one's motion over the part's initial height
+    in that direction; None for a scene without a moving tool."""
+    moving = _moving_tools(sim.scene)
+    if not moving:
+        return None
+    first = next(iter(moving.values()))
+    direction = first / np.linalg.norm(first)
+    height = np.ptp(direction @ sim.mesh.p)
+    travel = sum(abs(float(motion @ direction)) for motion in moving.values())
+    return 100.0 * np.asarray(t, float) * travel / height
+
+
+def inner_diameter_change(sim, gauges, point="inner_mid"):
+    """Change of the inner diameter in percent, ``(r - R) / R · 100``, of the
+    followed point ``point`` (the ring scenes' inner surface at mid-height)
+    at every row of ``gauges``; None if the scene does not follow it."""
+    if point not in sim.points or not gauges:
+        return None
+    R = float(sim.points[point][0])
+    return 100.0 * (np.array([g[f"{point} x"] for g in gauges]) - R) / R
+
+
+def friction_text(scene):
+    """``μ = 0.15`` (one tool), ``platen μ = 0.1, die sticking`` (several)."""
+    tools = {name.split(".", 1)[1]: section["friction"] for name, section in scene.items()
+             if name.startswith("tools.")}
+    words = {name: "sticking" if mu == "stick" else f"μ = {mu:g}" for name, mu in tools.items()}
+    if len(words) == 1:
+        return next(iter(words.values()))
+    return ", ".join(f"{name} {text}" for name, text in words.items())
+
+
+def force_label(key, scene):
+    """A reaction key of the history as a legend label: ``platen, force z``
+    for a tool, ``boundary bottom, reaction z`` for ``bottom[1]``."""
+    names = _axis_names(scene)
+    if key.endswith("]"):
+        boundary, component = key[:-1].split("[")
+        return f"boundary {boundary}, reaction {names[int(component)]}"
+    return f"{key}, force {names[1]}"
+
+
+def plot_history(ax, history, key, label, scale=1.0, x=None):
+    """A reaction (or gauge) of every step (its last component) against the
+    load factor, or against ``x`` (one value per step) when given."""
+    t = [r.t for r in history] if x is None else x
     values = []
     for r in history:
         v = np.atleast_1d(r.reactions[key]) if key in r.reactions else [np.nan]
         values.append(v[-1] * scale)
     ax.plot(t, values, "o-", ms=3, label=label)
-    ax.set_xlabel("load factor t")
+    if x is None:
+        ax.set_xlabel("load factor t")
     ax.grid(True, alpha=0.3)
 
 
+def force_axis_label(scene):
+    full = ", full ring" if scene["model"]["type"] == "axisymmetric" else ", per unit thickness"
+    return f"force on the part ({scene['model']['force_unit']}{full})"
+
+
 def save_run_figures(sim, result, out):
-    """``deformed.png`` and ``forces.png`` of one run in folder ``out``."""
-    fig, ax = plt.subplots(figsize=(6, 5))
+    """``deformed.png``, ``forces.png`` and, for a scene that follows the
+    point ``inner_mid`` with a moving tool (the ring), ``calibration.png``
+    of one run in folder ``out``."""
+    scene, history = sim.scene, result.history
+    t = np.array([r.t for r in history])
+    reduction = height_reduction(sim, t)
+    progress = (f"height reduction {reduction[-1]:.3g} %" if reduction is not None
+                and len(t) else f"t = {t[-1] if len(t) else 0:.3g}")
+    x = sim.mesh.p + nodal_displacements(sim.basis, result.d).T
+    aspect = np.ptp(x[1]) / max(np.ptp(x[0]), 1e-300)
+    wide = aspect < 0.8  # a flat part: the colour bar below it
+    fig, ax = plt.subplots(figsize=(7.0, float(np.clip(6.0 * aspect + 2.4, 3.6, 7.5))))
     art = plot_deformed(ax, sim.problem, result.d,
-                        f"{sim.scene['model']['title'] or 'run'} ({sim.method}), "
-                        f"t = {result.history[-1].t if result.history else 0:.3g}")
-    fig.colorbar(art, ax=ax, label="equivalent plastic strain")
-    fig.tight_layout()
-    fig.savefig(out / "deformed.png", dpi=120)
+                        f"{scene['model']['title'] or 'run'} ({sim.method.upper()}), "
+                        f"{friction_text(scene)}\n{progress}", scene=scene)
+    fig.colorbar(art, ax=ax, label="equivalent plastic strain",
+                 orientation="horizontal" if wide else "vertical",
+                 fraction=0.08 if wide else 0.05, pad=0.18 if wide else 0.04)
+    fig.savefig(out / "deformed.png", dpi=120, bbox_inches="tight")
     plt.close(fig)
-    keys = sorted({k for r in result.history for k in r.reactions})
+    keys = sorted({k for r in history for k in r.reactions},
+                  key=lambda k: (k.endswith("]"), k))  # tools first
     if keys:
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = plt.subplots(figsize=(6.5, 4.5))
         for key in keys:
-            plot_history(ax, result.history, key, key)
-        ax.set_ylabel("reaction / tool force")
+            plot_history(ax, history, key, force_label(key, scene), x=reduction)
+        if reduction is not None:
+            ax.set_xlabel("height reduction (%)")
+        ax.set_ylabel(force_axis_label(scene))
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
+        ax.set_title(f"{scene['model']['title'] or 'run'} ({sim.method.upper()}), "
+                     f"{friction_text(scene)}")
         ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(out / "forces.png", dpi=120)
         plt.close(fig)
+    change = inner_diameter_change(sim, result.gauges)
+    if change is not None and reduction is not None:
+        save_calibration_figure(sim, np.r_[0.0, reduction], np.r_[0.0, change],
+                                out / "calibration.png")
+
+
+def save_calibration_figure(sim, reduction, change, path):
+    """The run's inner-diameter change against height reduction, drawn as
+    one curve of the friction calibration chart
+    (:func:`skfem_rkpm.runs.calibration.plot_calibration`)."""
+    from .calibration import plot_calibration
+
+    scene = sim.scene
+    tools = [s["friction"] for n, s in scene.items() if n.startswith("tools.")]
+    key = tools[0] if len(tools) == 1 else friction_text(scene)
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    if isinstance(key, str) and key != "stick":  # several tools: one labelled curve
+        ax.plot(reduction, change, lw=1.6, label=key)
+        ax.set_xlabel("height reduction (%)")
+        ax.set_ylabel("inner diameter change (%)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    else:
+        plot_calibration({key: (reduction, change)}, ax=ax,
+                         title=f"{scene['model']['title'] or 'run'} "
+                               f"({sim.method.upper()}): inner diameter at mid-height")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -55,6 +55,9 @@ SCHEMA = {
                     doc="kinematic model; axisymmetric: x is the radius, forces for the full ring"),
         "method": Key("str", "rkpm", choices=("rkpm", "fem"), doc="discretization method"),
         "title": Key("str", "", doc="a name for reports"),
+        "length_unit": Key("str", "mm", doc="unit of lengths, for the axes of figures and "
+                                            "reports (the numbers are not converted)"),
+        "force_unit": Key("str", "N", doc="unit of forces, for figures and reports"),
     },
     "geometry": {
         "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "gmsh"),

@@ -125,7 +125,7 @@ def cmd_compare(args):
         print(f"\ninterrupted: the finished steps are in {out}; compare cannot resume, "
               f"run it again to start over", file=sys.stderr)
         return 130
-    report = write_comparison(runs, out)
+    report = write_comparison(runs, out, args.set, str(path))
     print(f"report: {report}")
     failed = [m for m, (_, result) in runs.items() if not result.completed]
     if failed:

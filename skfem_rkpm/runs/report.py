@@ -6,7 +6,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .plot import plot_deformed, plot_history  # noqa: E402
+from .plot import (force_axis_label, force_label, friction_text, height_reduction,  # noqa: E402
+                   inner_diameter_change, plot_deformed, plot_history)
 
 __all__ = ["write_comparison"]
 
@@ -15,26 +16,53 @@ def _summary(sim, result):
     history = result.history
     forces = {k: np.atleast_1d(v) for k, v in (history[-1].reactions.items()
                                                if history else [])}
+    unit = sim.scene["model"]["force_unit"]
+    final_t = history[-1].t if history else 0.0
+    reduction = height_reduction(sim, final_t)
+    change = inner_diameter_change(sim, getattr(result, "gauges", None))
     return {
         "dofs": sim.basis.N,
         "completed": result.completed,
-        "final t": history[-1].t if history else 0.0,
+        "final t": final_t,
+        **({"height reduction [%]": float(reduction)} if reduction is not None else {}),
+        **({"inner diameter change [%]": float(change[-1])} if change is not None else {}),
         "steps": len(history),
         "Newton iterations": sum(r.iterations for r in history),
         "iterations/step": (sum(r.iterations for r in history) / len(history)
                             if history else float("nan")),
         "wall time [s]": sum(r.seconds for r in history),
-        **{f"force {k}": float(v[-1]) for k, v in forces.items()},
+        **{f"{force_label(k, sim.scene)} [{unit}]": float(v[-1]) for k, v in forces.items()},
         "message": result.message,
     }
 
 
-def write_comparison(runs, out):
-    """Write ``report.md`` and ``compare.png`` for ``{method: (sim, result)}``."""
+def _settings(runs, source, settings):
+    """The lines of the report's settings: the scene, every ``--set``, and
+    the values that shape the comparison."""
+    sim = next(iter(runs.values()))[0]
+    scene = sim.scene
+    lines = ["## Settings", "", f"- scene: `{source or scene.get('_source')}`"]
+    lines += [f"- `--set {s}`" for s in settings] or ["- no `--set`"]
+    steps, disc = scene["steps"], scene["discretization"]
+    lines += [f"- model: {scene['model']['type']}, {friction_text(scene)}, "
+              f"{steps['count']} load steps, tolerance {steps['tolerance']:g}",
+              f"- rkpm: order {disc['order']}, "
+              + (f"support {disc['support']:g} {scene['model']['length_unit']}"
+                 if disc["support"] is not None else f"dilation {disc['dilation']:g}")
+              + f", {disc['integration']} integration, quadrature degree {disc['quadrature']}",
+              f"- fem: {disc['element']}; locking control {disc['locking']}",
+              "- the resolved scene of each method: `rkpm/scene.toml`, `fem/scene.toml`", ""]
+    return lines
+
+
+def write_comparison(runs, out, settings=(), source=None):
+    """Write ``report.md`` and ``compare.png`` for ``{method: (sim, result)}``;
+    ``settings`` (the ``--set`` strings) and ``source`` (the scene) go into
+    the report's settings."""
     summaries = {m: _summary(*runs[m]) for m in runs}
     keys = list(dict.fromkeys(k for s in summaries.values() for k in s))
-    lines = ["# RKPM vs FEM", "", "| | " + " | ".join(runs) + " |",
-             "|---|" + "---|" * len(runs)]
+    lines = ["# RKPM vs FEM", "", *_settings(runs, source, settings), "## Results", "",
+             "| | " + " | ".join(runs) + " |", "|---|" + "---|" * len(runs)]
     for key in keys:
         cells = []
         for m in runs:
@@ -47,16 +75,22 @@ def write_comparison(runs, out):
     for ax, m in zip(axes, runs):
         sim, result = runs[m]
         art = plot_deformed(ax, sim.problem, result.d,
-                            f"{m}: t = {summaries[m]['final t']:.3g}", vmax=vmax)
+                            f"{m}: t = {summaries[m]['final t']:.3g}", vmax=vmax,
+                            scene=sim.scene)
     fig.colorbar(art, ax=axes[:-1], label="equivalent plastic strain")
     ax = axes[-1]
     for m in runs:
         sim, result = runs[m]
         tools = [k for k in (result.history[-1].reactions if result.history else {})
                  if not k.endswith("]")]
+        reduction = height_reduction(sim, [r.t for r in result.history])
         for key in tools:
-            plot_history(ax, result.history, key, f"{m} {key}")
-    ax.set_ylabel("tool force (last component)")
+            plot_history(ax, result.history, key, f"{m}: {force_label(key, sim.scene)}",
+                         x=reduction)
+        if reduction is not None:
+            ax.set_xlabel("height reduction (%)")
+    ax.set_ylabel(force_axis_label(sim.scene))
+    ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
     ax.legend(fontsize=8)
     fig.savefig(out / "compare.png", dpi=110, bbox_inches="tight")
     plt.close(fig)

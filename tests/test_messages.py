@@ -131,3 +131,89 @@ def test_help_is_plain_text_and_names_the_default_folder(command, default, capsy
     with pytest.raises(SystemExit):
         main(["--help"])
     assert "`" not in capsys.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def ring_run(tmp_path_factory):
+    """The small ring run by the command line with its figures (about 4 s)."""
+    out = tmp_path_factory.mktemp("ring")
+    args = ["run", "ring", *(f"--set={s}" for s in SMALL[:-1]), "--set=output.fields=false",
+            "--out", str(out), "--quiet"]
+    assert main(args) == 0
+    sim = small_ring()
+    return out, sim, runner.run(sim, progress=False)
+
+
+def test_the_ring_run_draws_its_figures_and_calibration_curve(ring_run):
+    out, _, _ = ring_run
+    for name in ("deformed.png", "forces.png", "calibration.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_drawn_curves_are_those_of_history_csv(ring_run):
+    """Height reduction and inner-diameter change of the figures against
+    calibration.ring_curve, which reads history.csv (the platen's gauge
+    column and the followed point) independently."""
+    from skfem_rkpm.runs.calibration import ring_curve
+    from skfem_rkpm.runs.plot import height_reduction, inner_diameter_change
+
+    out, sim, result = ring_run
+    reduction, change = ring_curve(out / "history.csv")
+    t = [r.t for r in result.history]
+    np.testing.assert_allclose(height_reduction(sim, t), reduction[1:], rtol=1e-12)
+    np.testing.assert_allclose(inner_diameter_change(sim, result.gauges), change[1:],
+                               rtol=1e-9)  # the CSV holds 17 digits: round-off
+    assert reduction[-1] == pytest.approx(50.0)  # 10 mm travel over the 20 mm half height
+
+
+def test_figures_have_units_readable_labels_and_the_friction(ring_run):
+    import matplotlib.pyplot as plt
+
+    from skfem_rkpm.runs.plot import run_figures
+
+    _, sim, result = ring_run
+    figures = run_figures(sim, result)
+    deformed = figures["deformed.png"].axes[0]
+    assert (deformed.get_xlabel(), deformed.get_ylabel()) == ("r (mm)", "z (mm)")
+    assert deformed.get_title() == "Ring compression (RKPM), μ = 0.15\nheight reduction 50 %"
+    forces = figures["forces.png"].axes[0]
+    assert forces.get_xlabel() == "height reduction (%)"
+    assert forces.get_ylabel() == "force on the part (N, full ring)"
+    labels = [line.get_label() for line in forces.get_lines()]
+    assert labels == ["platen, force z", "boundary bottom, reaction z"]  # not bottom[1]
+    calibration = figures["calibration.png"].axes[0]
+    assert calibration.get_xlabel() == "height reduction (%)"
+    assert calibration.get_ylabel() == "inner diameter change (%)"
+    for fig in figures.values():
+        plt.close(fig)
+    # another unit, plane strain, frictionless, a tool that does not move
+    sim = small_ring('model.length_unit="m"', 'model.force_unit="kN"',
+                     'model.type="plane_strain"', "tools.platen.friction=0",
+                     "tools.platen.motion=[0, 0]", "boundary.top.displacement=[0, -2]")
+    result = runner.run(sim, progress=False)
+    figures = run_figures(sim, result)
+    deformed = figures["deformed.png"].axes[0]
+    assert (deformed.get_xlabel(), deformed.get_ylabel()) == ("x (m)", "y (m)")
+    assert deformed.get_title() == "Ring compression (RKPM), μ = 0\nt = 1"
+    forces = figures["forces.png"].axes[0]
+    assert forces.get_xlabel() == "load factor t"
+    assert forces.get_ylabel() == "force on the part (kN, per unit thickness)"
+    assert "calibration.png" not in figures
+    for fig in figures.values():
+        plt.close(fig)
+
+
+def test_the_comparison_report_names_its_settings_and_the_inner_diameter(ring_run, tmp_path):
+    from skfem_rkpm.runs.report import write_comparison
+
+    _, sim, result = ring_run
+    report = write_comparison({"rkpm": (sim, result)}, tmp_path, SMALL, "ring.toml")
+    text = report.read_text()
+    assert "- scene: `ring.toml`" in text
+    for setting in SMALL:
+        assert f"- `--set {setting}`" in text
+    assert "axisymmetric, μ = 0.15, 6 load steps" in text
+    change = 100 * (result.gauges[-1]["inner_mid x"] - 30.0) / 30.0
+    assert f"| inner diameter change [%] | {change:.4g} |" in text
+    assert "| height reduction [%] | 50 |" in text
+    assert "| platen, force z [N] |" in text

@@ -13,7 +13,8 @@ import numpy as np  # noqa: E402
 from .io import cell_averages, nodal_displacements  # noqa: E402
 
 __all__ = ["nodal_plastic_strain", "plot_deformed", "plot_history", "save_run_figures",
-           "height_reduction", "inner_diameter_change", "friction_text", "force_label"]
+           "run_figures", "height_reduction", "inner_diameter_change", "friction_text",
+           "force_label", "force_axis_label", "calibration_figure"]
 
 
 def nodal_plastic_strain(problem):
@@ -127,7 +128,15 @@ def force_axis_label(scene):
 def save_run_figures(sim, result, out):
     """``deformed.png``, ``forces.png`` and, for a scene that follows the
     point ``inner_mid`` with a moving tool (the ring), ``calibration.png``
-    of one run in folder ``out``."""
+    of one run in folder ``out`` (:func:`run_figures`)."""
+    for name, fig in run_figures(sim, result).items():
+        fig.savefig(out / name, dpi=120, bbox_inches="tight")
+        plt.close(fig)
+
+
+def run_figures(sim, result):
+    """The figures of :func:`save_run_figures`, ``{file name: Figure}``."""
+    figures = {}
     scene, history = sim.scene, result.history
     t = np.array([r.t for r in history])
     reduction = height_reduction(sim, t)
@@ -143,8 +152,7 @@ def save_run_figures(sim, result, out):
     fig.colorbar(art, ax=ax, label="equivalent plastic strain",
                  orientation="horizontal" if wide else "vertical",
                  fraction=0.08 if wide else 0.05, pad=0.18 if wide else 0.04)
-    fig.savefig(out / "deformed.png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    figures["deformed.png"] = fig
     keys = sorted({k for r in history for k in r.reactions},
                   key=lambda k: (k.endswith("]"), k))  # tools first
     if keys:
@@ -159,15 +167,15 @@ def save_run_figures(sim, result, out):
                      f"{friction_text(scene)}")
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / "forces.png", dpi=120)
-        plt.close(fig)
+        figures["forces.png"] = fig
     change = inner_diameter_change(sim, result.gauges)
     if change is not None and reduction is not None:
-        save_calibration_figure(sim, np.r_[0.0, reduction], np.r_[0.0, change],
-                                out / "calibration.png")
+        figures["calibration.png"] = calibration_figure(sim, np.r_[0.0, reduction],
+                                                        np.r_[0.0, change])
+    return figures
 
 
-def save_calibration_figure(sim, reduction, change, path):
+def calibration_figure(sim, reduction, change):
     """The run's inner-diameter change against height reduction, drawn as
     one curve of the friction calibration chart
     (:func:`skfem_rkpm.runs.calibration.plot_calibration`)."""
@@ -188,5 +196,4 @@ def save_calibration_figure(sim, reduction, change, path):
                          title=f"{scene['model']['title'] or 'run'} "
                                f"({sim.method.upper()}): inner diameter at mid-height")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig

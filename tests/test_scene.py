@@ -128,7 +128,7 @@ def test_tool_slave_boundary_missing_from_the_mesh_names_the_tool():
     # under [output]
     ("foo=1", "--set 'foo=1': unknown key 'foo': give SECTION.KEY"),
     ("model.foo=1", "--set 'model.foo=1': unknown key 'model.foo'; known keys of "
-                    "[model]: method, title, type"),
+                    "[model]: force_unit, length_unit, method, title, type"),
     ("solver.tolerance=1", "unknown section 'solver' in 'solver.tolerance'"),
     ("tools.friction=0.1", "'tools.friction' names no tools: give tools.NAME.KEY, e.g. "
                            "tools.platen.friction"),

@@ -27,7 +27,8 @@ __all__ = ["FolderError", "RunFolder", "atomic_path", "write_atomic", "open_appe
 #: what a run writes (removed when a new run starts in the folder); the
 #: figures are those of :func:`skfem_rkpm.runs.plot.save_run_figures`
 OUTPUTS = ("history.csv", "history.jsonl", "fields.xdmf", "fields", "fields.h5",
-           "checkpoint.npz", "checkpoint.pkl", "status.txt", "deformed.png", "forces.png")
+           "checkpoint.npz", "checkpoint.pkl", "status.txt", "deformed.png", "forces.png",
+           "calibration.png")
 
 
 class FolderError(ValueError):

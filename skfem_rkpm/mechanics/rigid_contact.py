@@ -26,16 +26,6 @@ def _outer(a, b):
     return np.einsum("ni,nj->nij", a, b)
 
 
-def _block_diagonal(blocks):
-    """Sparse block-diagonal matrix of (n, m, m) blocks."""
-    n, m, _ = blocks.shape
-    base = m * np.arange(n)
-    rows = np.broadcast_to(base[:, None, None] + np.arange(m)[None, :, None], blocks.shape)
-    cols = np.broadcast_to(base[:, None, None] + np.arange(m)[None, None, :], blocks.shape)
-    return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
-                         shape=(n * m, n * m))
-
-
 def _directional(G, vectors):
     """Rows ``v_qᵀ G_q`` (sparse n × N): the derivative of ``v_q · u(x_q)``."""
     n = vectors.shape[1]
@@ -52,7 +42,57 @@ def _curvature_blocks(proj, pressure, shear):
             + (shear * kappa)[:, None, None] * _outer(n, t))
 
 
-def _rigid_tangent(pts, proj, Bn, slipped, law, omega_n, omega_t, mu):
+class _PointCoupling:
+    """The fixed sparsity of the rigid-contact tangent between slave points.
+
+    Contact nodes couple the slave points they share (``M = Nᵀ w``): the
+    tangent is ``Gᵀ X G`` with ``X`` a (2 × 2)-block matrix on the pattern
+    of ``Mᵀ M`` plus the diagonal.  The scalar matrices ``Mᵀ diag(v) M``
+    are linear in the nodal values ``v``: their entries are summed from the
+    products ``M_Kp M_Kq`` listed here once, so that each evaluation builds
+    ``X`` from arrays and needs two sparse products only.
+    """
+
+    def __init__(self, pts):
+        M = sp.csr_matrix(pts.weighted_hats)
+        n = M.shape[1]
+        pattern = (abs(M).T @ abs(M) + sp.identity(n)).tocsr()
+        pattern.sort_indices()
+        self.indptr, self.indices = pattern.indptr, pattern.indices
+        rows = np.repeat(np.arange(n), np.diff(pattern.indptr))
+        keys = rows.astype(np.int64) * n + pattern.indices
+        node_of = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+        # every pair (p, q) of points of one contact node K
+        first = np.repeat(np.arange(M.nnz), np.diff(M.indptr)[node_of])
+        start = M.indptr[node_of][first]
+        offset = np.arange(len(first)) - np.repeat(
+            np.concatenate([[0], np.cumsum(np.diff(M.indptr)[node_of])[:-1]]),
+            np.diff(M.indptr)[node_of])
+        second = start + offset
+        self.node = node_of[first]
+        self.entry = np.searchsorted(keys, M.indices[first].astype(np.int64) * n
+                                     + M.indices[second])
+        self.coefficient = M.data[first] * M.data[second]
+        self.rows = rows
+        self.cols = pattern.indices
+        self.diagonal = np.searchsorted(keys, np.arange(n, dtype=np.int64) * (n + 1))
+        self.n = n
+        self.G = sp.csr_matrix(pts.G)
+        self.GT = self.G.T.tocsr()
+
+    def scalar(self, v):
+        """The entries of ``Mᵀ diag(v) M`` on the pattern."""
+        return np.bincount(self.entry, weights=self.coefficient * v[self.node],
+                           minlength=len(self.cols))
+
+    def tangent(self, blocks):
+        """``Gᵀ X G`` for the 2 × 2 blocks of ``X`` on the pattern."""
+        X = sp.bsr_matrix((blocks, self.indices, self.indptr),
+                          shape=(2 * self.n, 2 * self.n)).tocsr()
+        return self.GT @ (X @ self.G)
+
+
+def _rigid_tangent(coupling, proj, slipped, law, omega_n, omega_t, mu, pts):
     """Consistent tangent of the rigid-tool contact force (Eq. 4.28-4.29).
 
     With ``B_n``, ``B_t`` the rows ``n_qᵀ G_q``, ``t_qᵀ G_q`` of the slave
@@ -69,24 +109,28 @@ def _rigid_tangent(pts, proj, Bn, slipped, law, omega_n, omega_t, mu):
     ``H``, ``S``, ``Σ`` select the nodes in contact, sticking and slipping,
     ``a_q = 1 - κ_q (Δξ_q·n_q)`` comes from the rotation of ``t`` and
     ``φ(ĝ)`` is the part of the step spent in contact (:meth:`RigidContact._law`).
+    All terms are ``Gᵀ X G`` with ``X`` in 2 × 2 blocks between slave points
+    (:class:`_PointCoupling`), summed before the two sparse products.
     """
     pressure, shear, slip, active, slip_t, phi, dphi = law
-    G, w = pts.G, pts.weights
-    M = pts.weighted_hats
     inv_W = 1.0 / pts.node_weights
-    K = omega_n * (Bn.T @ M.T @ sp.diags(active * inv_W) @ M @ Bn)
+    normal, tangent = proj.normal.T, proj.tangent.T
+    p, q = coupling.rows, coupling.cols
+    blocks = ((omega_n * coupling.scalar(active * inv_W))[:, None, None]
+              * normal[p][:, :, None] * normal[q][:, None, :])
     if mu > 0:
-        a = 1.0 - proj.curvature * np.einsum("ni,ni->n", slipped, proj.normal.T)
-        Bt = _directional(G, proj.tangent)
+        a = 1.0 - proj.curvature * np.einsum("ni,ni->n", slipped, normal)
         stick = omega_t * (active & ~slip) * inv_W
-        K = K + Bt.T @ M.T @ (sp.diags(stick * phi) @ M @ sp.diags(a) @ Bt
-                              + sp.diags(stick * slip_t * dphi) @ M @ Bn)
+        coupled = coupling.scalar(stick * slip_t * dphi)
         if np.isfinite(mu):  # μ = ∞ (exact stick) never slips
-            sliding = mu * omega_n * np.sign(shear) * (slip & active) * inv_W
-            K = K + Bt.T @ M.T @ sp.diags(sliding) @ M @ Bn
-    p, s = pts.hats @ pressure, pts.hats @ shear
-    blocks = w[:, None, None] * _curvature_blocks(proj, p, s)
-    return (K + G.T @ _block_diagonal(blocks) @ G).tocsr()
+            coupled = coupled + coupling.scalar(
+                mu * omega_n * np.sign(shear) * (slip & active) * inv_W)
+        blocks += ((coupling.scalar(stick * phi) * a[q])[:, None, None]
+                   * tangent[p][:, :, None] * tangent[q][:, None, :])
+        blocks += coupled[:, None, None] * tangent[p][:, :, None] * normal[q][:, None, :]
+    blocks[coupling.diagonal] += pts.weights[:, None, None] * _curvature_blocks(
+        proj, pts.hats @ pressure, pts.hats @ shear)
+    return coupling.tangent(blocks)
 
 
 def _touch_fraction(gap, previous_gap, was_active):
@@ -244,6 +288,7 @@ class RigidContact:
                         if tangential_penalty is None
                         else _positive(tangential_penalty, "tangential penalty"))
         self.tolerance = _positive(tolerance, "augmented Lagrangian tolerance")
+        self._coupling = _PointCoupling(self.points)
         self.state = self.trial = self._initial_state()
         self.restart()
         _check_initial_side(tool, self.points.X, self.points.spacing)
@@ -290,10 +335,10 @@ class RigidContact:
         pressure, shear = law[0], law[1]
         traction = (pts.hats @ pressure) * proj.normal + (pts.hats @ shear) * proj.tangent
         _check_finite_traction(traction, pts.X, self.name)
-        f = pts.G.T @ (-(pts.weights * traction)).T.ravel()
-        Bn = _directional(pts.G, proj.normal)
-        K = _rigid_tangent(pts, proj, Bn, slipped, law, self.omega_n, self.omega_t, self.mu)
-        self._normal_rows = Bn  # for touching(): the linearized gaps
+        f = self._coupling.GT @ (-(pts.weights * traction)).T.ravel()
+        K = _rigid_tangent(self._coupling, proj, slipped, law, self.omega_n, self.omega_t,
+                           self.mu, pts)
+        self._normals = proj.normal  # for touching(): the linearized gaps
         self.trial = ContactState(x, proj.gap, proj.normal, proj.tangent, relative,
                                   node_gap, pressure, shear, law[2], law[3],
                                   (pts.weights * traction).sum(axis=1))
@@ -319,7 +364,8 @@ class RigidContact:
         if not apart.any():
             return None
         pts = self.points
-        rows = (pts.weighted_hats @ self._normal_rows) / pts.node_weights[:, None]
+        normal_rows = _directional(pts.G, self._normals)
+        rows = (pts.weighted_hats @ normal_rows) / pts.node_weights[:, None]
         pressed = self.trial.node_gap - self.multipliers[0] / self.omega_n
         touching = apart & (pressed + rows @ delta < 0.0)
         if not touching.any():

@@ -369,7 +369,7 @@ class Assembler:
             data += np.bincount(self._places(s), weights=local.ravel(), minlength=nnz)
         return sp.csr_matrix((data, cols, indptr), shape=self.shape)
 
-    def local_bilinear(self, C, out=None):
+    def local_bilinear(self, C, out=None, rank_one=None):
         """Local matrices of :meth:`bilinear`, shape (nelems, nloc_v, c_v, c_u, nloc_u).
 
         Per block of cells, ``R = C ∂N`` of the trial functions is formed
@@ -379,6 +379,11 @@ class Assembler:
         (nelems, nqp, dim_v, c_v, c_u, dim_u), without a copy if ``C`` is a
         transposed view of an array stored that way.  ``out`` (an earlier
         result) is overwritten instead of allocating new local matrices.
+        ``rank_one = (u, w)`` (each (nloc * c, nelems)) adds the per-cell
+        blocks ``u_e ⊗ w_e`` of :meth:`local_outer` inside the same product:
+        ``u`` as ``c_v`` more columns of the test gradients, ``w`` as
+        ``c_v`` more rows of ``R``, so no further pass over the local
+        matrices is needed (square assemblers only).
         """
         U, V = self.layout, self.test_layout
         nloc_v, nelems = V.element_nodes.shape
@@ -386,9 +391,27 @@ class Assembler:
         local = (np.empty((nelems, nloc_v, V.ncomp, U.ncomp, U.element_nodes.shape[0]))
                  if out is None else out)
         flat = local.reshape(nelems, nloc_v, width)
+        factors = None
+        if rank_one is not None:
+            u, w = self._outer_factors(*rank_one)
+            factors = (self._test_grads_with(u[..., 0, 0]), w.reshape(nelems, -1))
         for s in self._blocks(V.dim * U.dx.shape[1] * width):  # size of R
-            self._local_block(C, s, flat[s])
+            self._local_block(C, s, flat[s], factors)
         return local
+
+    def _test_grads_with(self, u):
+        """The weighted test gradients (nelems, nloc, nqp * dim) with the
+        columns ``u`` (nelems, nloc, c) appended, in a buffer kept between
+        calls when the gradients are cached."""
+        T = self._weighted_test_grads(slice(None))
+        buffer = self._cache.get("test with rank one")
+        if buffer is None or buffer.shape[2] != T.shape[2] + u.shape[2]:
+            buffer = np.concatenate([T, u], axis=2)
+            if "test" in self._cache:
+                self._cache["test with rank one"] = buffer
+        else:
+            buffer[:, :, T.shape[2]:] = u
+        return buffer
 
     def _tangent_matrix(self, C):
         """``C`` as a matrix (l c d) x m, per point (nelems, nqp, ., .) or one,
@@ -407,14 +430,30 @@ class Assembler:
             C = C.transpose(1, 0, 2, 3).reshape(dim_v * cv * cu, dim_u)
         return C, cv * cu * U.element_nodes.shape[0]
 
-    def _local_block(self, C, s, out):
-        """Local matrices of cells ``s`` into ``out`` (cells, nloc_v, width)."""
+    def _local_block(self, C, s, out, rank_one=None):
+        """Local matrices of cells ``s`` into ``out`` (cells, nloc_v, width),
+        with the rank-one factors of :meth:`local_bilinear` if given
+        (test gradients with ``u`` appended, ``w`` as (nelems, c * nloc))."""
         E, nqp, dim_v = s.stop - s.start, self.layout.dx.shape[1], self.test_layout.dim
-        # R[E, q, (l c d), b] = Σ_m C[E, q, (l c d), m] ∂_m N_b
-        R = np.matmul(C[s] if C.ndim == 4 else C, self._trial_grads(s))
-        # local[E, a, (c d b)] = Σ_(q l) T[E, a, (q l)] R[E, (q l), (c d b)]
-        np.matmul(self._weighted_test_grads(s), R.reshape(E, nqp * dim_v, out.shape[-1]),
-                  out=out)
+        grads = self._trial_grads(s)
+        if rank_one is None:
+            # R[E, q, (l c d), b] = Σ_m C[E, q, (l c d), m] ∂_m N_b
+            R = np.matmul(C[s] if C.ndim == 4 else C, grads)
+            # local[E, a, (c d b)] = Σ_(q l) T[E, a, (q l)] R[E, (q l), (c d b)]
+            np.matmul(self._weighted_test_grads(s),
+                      R.reshape(E, nqp * dim_v, out.shape[-1]), out=out)
+            return
+        T, w = rank_one
+        rows, c = nqp * dim_v, self.test_layout.ncomp
+        R = np.empty((E, rows + c, out.shape[-1]))
+        product = R[:, :rows].reshape(E, nqp, -1, grads.shape[-1])
+        np.matmul(C[s] if C.ndim == 4 else C, grads, out=product)
+        # rows (rows + c'): δ_(c c') w[E, d, b], so that local += u[E, a, c] w[E, d, b]
+        extra = R[:, rows:].reshape(E, c, c, -1)
+        extra[...] = 0.0
+        for comp in range(c):
+            extra[:, comp, comp] = w[s]
+        np.matmul(T[s], R, out=out)
 
     def _cached(self, key, s, compute):
         """``compute(s)``, from a copy for all cells kept if small enough."""

@@ -110,3 +110,25 @@ def test_local_tangent_with_rank_one_blocks_equals_the_sum_of_matrices(basis, ca
     got = asm.matrix(asm.add_outer(local, u, w)).toarray()
     assert np.abs(got - expected).max() < 1e-13 * np.abs(expected).max()
     assert bool(asm._cache) == cache
+
+
+@pytest.mark.parametrize("cache", [True, False])
+def test_rank_one_blocks_inside_the_local_product_equal_the_sum_of_matrices(
+        basis, cache, monkeypatch):
+    """``local_bilinear(C, rank_one=(u, w))`` folds the blocks ``u_e ⊗ w_e``
+    into its batched product; the result is the sum of the two matrices
+    assembled separately, to round-off (a few summation orders of products
+    of O(1) random numbers: 1e-13 of the largest entry), also on the second
+    call, which reuses the kept buffer of the test gradients with ``u``."""
+    if not cache:
+        monkeypatch.setattr(assembly, "CACHE_ENTRIES", 0)
+    asm = Assembler(basis, axisymmetric=True)
+    L = asm.layout
+    rng = np.random.default_rng(7)
+    for _ in range(2):
+        C = rng.normal(size=(2, 3, 2, 3) + L.dx.shape)
+        u, w = rng.normal(size=(2, *asm.element_dofs.shape))
+        expected = (asm.bilinear(C) + asm.outer(u, w)).toarray()
+        got = asm.matrix(asm.local_bilinear(C, rank_one=(u, w))).toarray()
+        assert np.abs(got - expected).max() < 1e-13 * np.abs(expected).max()
+    assert ("test with rank one" in asm._cache) == cache

@@ -23,7 +23,8 @@ import numpy as np
 
 from ..approximation.nodal_integration import stabilization_matrix
 from ..assembly import Assembler, isotropic_tangent
-from .kinematics import deformation_gradient, entries, from_entries
+from .kinematics import (deformation_gradient, entries, from_entries,
+                         inverse_and_determinant)
 from .materials import MaterialState, ReturnMapError
 
 __all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
@@ -126,14 +127,14 @@ class SolidProblem:
         state = self.state if state is None else state
         F = deformation_gradient(self.assembler.gradient(d), self.model)
         self._check_finite(F, "the deformation gradient F")
-        J = np.linalg.det(F)
+        Finv, J = inverse_and_determinant(F)
         bad = np.flatnonzero(~(J > 0))
         if bad.size:
             raise InvertedElementError(
                 f"det F = {J[bad[0]]:.3g} <= 0 at {bad.size} quadrature points; "
                 f"first {self._where(bad[0])}", bad)
         if self.locking == "fbar":
-            return self._stabilized(self._evaluate_fbar(F, J, state, tangent), d)
+            return self._stabilized(self._evaluate_fbar(F, Finv, J, state, tangent), d)
         P, tau, new_state, A = self._update(F, state, tangent)
         P_ext, A_ext = from_entries(self._at_entries(P), A, self.model, self.shape)
         f_int = self.assembler.linear(P_ext)
@@ -201,7 +202,7 @@ class SolidProblem:
             raise NonFiniteError(f"{what} is not finite at {bad.size} quadrature points; "
                                  f"first {self._where(bad[0])}", bad)
 
-    def _evaluate_fbar(self, F, J, state, tangent):
+    def _evaluate_fbar(self, F, Finv, J, state, tangent):
         """F-bar: ``F̄ = F + (β^{1/n} - 1) F_M`` with ``β = J̄_e / J``.
 
         ``J̄_e`` is the volume average of ``J`` over the cell, ``n = 2`` with
@@ -234,7 +235,7 @@ class SolidProblem:
         if not tangent:
             P_ext, _ = from_entries(self._at_entries(P), None, self.model, self.shape)
             return Evaluation(self.assembler.linear(P_ext), None, F, P, tau, new_state)
-        FinvT = self._at_entries(np.linalg.inv(F).transpose(0, 2, 1))
+        FinvT = self._at_entries(Finv.transpose(0, 2, 1))
         Pbar = self._at_entries(Pbar)
         AF = (A @ self._at_entries(FM)[:, :, None])[:, :, 0]
         A_hat = ((gamma * s)[:, None, None] * (A - AF[:, :, None] * FinvT[:, None, :] / n)
@@ -250,14 +251,14 @@ class SolidProblem:
         return Evaluation(self.assembler.linear(P_ext), K, F, P, tau, new_state)
 
     def _tangent_matrix(self, A_ext, rank_one=None):
-        """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w``.
+        """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w`` (summed
+        inside the products of :meth:`Assembler.local_bilinear`).
 
         The local matrices are written into the same buffer every time:
         fresh memory of that size costs more to touch than to compute.
         """
-        self._local = self.assembler.local_bilinear(A_ext, out=self._local)
-        if rank_one is not None:
-            self.assembler.add_outer(self._local, *rank_one)
+        self._local = self.assembler.local_bilinear(A_ext, out=self._local,
+                                                    rank_one=rank_one)
         return self.assembler.matrix(self._local)
 
     def _at_entries(self, T):

@@ -35,6 +35,8 @@ __all__ = ["Hardening", "perfect", "linear", "swift", "voce", "table", "J2Materi
            "MaterialState", "ReturnMapError"]
 
 I3 = np.eye(3)
+#: the shear pairs (A, B), A < B, of principal components
+_PAIR_A, _PAIR_B = np.array([0, 0, 1]), np.array([1, 2, 2])
 
 
 class ReturnMapError(RuntimeError):
@@ -358,18 +360,28 @@ class J2Material:
         in the principal frame: with ``Q`` the eigenvectors (columns) and
         ``W = F⁻¹ Q``, ``Z_(iJ),(AB) = Q_iA W_JB`` maps principal components
         to ``(i, J)`` and ``A = Z Ŝ Zᵀ - P_iL F⁻¹_Jk``, ``Ŝ`` the principal
-        tangent of :meth:`_principal_tangent`.
+        tangent of :meth:`_principal_tangent`.  ``Ŝ`` couples the normal
+        components through ``D`` and each shear pair ``A < B`` only with
+        itself, so ``Z Ŝ Zᵀ = X Yᵀ`` with six columns,
+        ``X = [Z_AA D, Z_AB + Z_BA]`` and ``Y = [Z_AA, g_AB Z_AB + g_BA Z_BA]``.
         """
         rows = np.array([i for i, _ in entries])
         cols = np.array([J for _, J in entries])
         W = Finv @ vec
-        Z = vec[:, rows, :, None] * W[:, cols, None, :]  # (n, m, A, B)
-        Y = g[:, None] * (Z + Z.transpose(0, 1, 3, 2))
-        diag = np.arange(3)
-        Y[:, :, diag, diag] = Z[:, :, diag, diag] @ D
-        n, m = Z.shape[:2]
-        A = Y.reshape(n, m, 9) @ Z.reshape(n, m, 9).transpose(0, 2, 1)
-        A -= P[:, rows[:, None], cols[None, :]] * Finv[:, cols[:, None], rows[None, :]]
+        Q, WJ = vec[:, rows], W[:, cols]  # Q_iA and W_JB at the entries, (n, m, 3)
+        n, m = Q.shape[:2]
+        a, b = _PAIR_A, _PAIR_B
+        Zd = Q * WJ
+        Zab, Zba = Q[:, :, a] * WJ[:, :, b], Q[:, :, b] * WJ[:, :, a]
+        X, Y = np.empty((n, m, 6)), np.empty((n, 6, m))
+        np.matmul(Zd, D, out=X[:, :, :3])
+        np.add(Zab, Zba, out=X[:, :, 3:])
+        Y[:, :3] = Zd.transpose(0, 2, 1)
+        Y[:, 3:] = (g[:, None, a, b] * Zab + g[:, None, b, a] * Zba).transpose(0, 2, 1)
+        A = X @ Y
+        # P_iL F⁻¹_Jk at (iJ, kL): flat entries 3 i + L of P and 3 J + k of F⁻¹
+        A -= (np.take(P.reshape(n, 9), 3 * rows[:, None] + cols[None, :], axis=1)
+              * np.take(Finv.reshape(n, 9), 3 * cols[:, None] + rows[None, :], axis=1))
         return A
 
     # -- finite strain ----------------------------------------------------------

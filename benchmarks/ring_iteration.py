@@ -33,7 +33,8 @@ equal the wall time of an idle machine and hardly grow when other processes
 share the cores), or elapsed time with ``--clock wall``.  ``--full`` also
 runs the whole stick ring for both methods (wall and CPU time, iterations,
 evaluations, CPU ms per evaluation); ``--save FILE`` stores the tool force history of the full runs
-and ``--compare FILE`` checks it against a stored one (relative difference).
+and ``--compare FILE`` checks it against a stored one (relative difference at
+the load factors both runs converged at, and at the end).
 
 Run:  python benchmarks/ring_iteration.py            (~1 minute)
       python benchmarks/ring_iteration.py --full     (adds the full runs)
@@ -209,11 +210,23 @@ def full_table(args):
     if args.compare:
         stored = np.load(args.compare)
         for method, run in runs.items():
-            ref, got = stored[f"{method}_force"], run["force"]
-            n = min(len(ref), len(got))
-            diff = np.abs(got[:n] - ref[:n]).max() / np.abs(ref[:n]).max()
-            print(f"{method}: force history vs {args.compare}: {n} of {len(ref)} / "
-                  f"{len(got)} steps, largest difference {diff:.2e} of the largest force")
+            compare_histories(method, stored[f"{method}_t"], stored[f"{method}_force"],
+                              run["t"], run["force"], args.compare)
+
+
+def compare_histories(method, t_ref, ref, t, force, name):
+    """Print how far the force history ``(t, force)`` is from ``(t_ref, ref)``
+    at the load factors both runs converged at (a cut-back taken by one run
+    and not the other shifts the step numbers, not the load factors), and
+    at the end of the runs, relative to the largest stored force."""
+    common, i_ref, i = np.intersect1d(np.round(t_ref, 12), np.round(t, 12),
+                                      return_indices=True)
+    scale = np.abs(ref).max()
+    diff = np.abs(force[i] - ref[i_ref]).max(axis=-1) / scale
+    end = np.abs(force[-1] - ref[-1]).max() / scale if t[-1] == t_ref[-1] else np.nan
+    print(f"{method}: force history vs {name}: {len(common)} common load factors of "
+          f"{len(t_ref)} / {len(t)} steps; difference there: largest {diff.max():.2e}, "
+          f"median {np.median(diff):.2e} of the largest force; at the end {end:.2e}")
 
 
 def main():

@@ -187,8 +187,29 @@ class MaterialState:
 
 
 def _spectral(b):
-    """Eigenvalues (n, 3) and eigenvectors (n, 3, 3) (columns) of symmetric ``b``."""
-    return np.linalg.eigh(b)
+    """Eigenvalues (n, 3) and eigenvectors (n, 3, 3) (columns) of symmetric ``b``.
+
+    If no ``b`` couples the third axis with the others (plane strain and
+    axisymmetric models: ``b_13 = b_23 = 0``), the in-plane 2 x 2 blocks are
+    diagonalized in closed form, by the rotation of angle
+    ``½ atan2(2 b_12, b_11 - b_22)`` (eigenvalues ``m ± r``, mean ``m`` and
+    radius ``r`` of Mohr's circle), and ``b_33`` is the third eigenvalue; one
+    LAPACK call per point otherwise.  The order of the eigenvalues is not
+    sorted: nothing downstream depends on it.
+    """
+    if np.any(b[:, :2, 2]) or np.any(b[:, 2, :2]):
+        return np.linalg.eigh(b)
+    half_difference = 0.5 * (b[:, 0, 0] - b[:, 1, 1])
+    angle = 0.5 * np.arctan2(b[:, 0, 1], half_difference)
+    c, s = np.cos(angle), np.sin(angle)
+    mean = 0.5 * (b[:, 0, 0] + b[:, 1, 1])
+    radius = np.hypot(half_difference, b[:, 0, 1])
+    lam = np.stack([mean + radius, mean - radius, b[:, 2, 2]], axis=1)
+    vec = np.zeros_like(b)
+    vec[:, 0, 0] = vec[:, 1, 1] = c
+    vec[:, 1, 0], vec[:, 0, 1] = s, -s
+    vec[:, 2, 2] = 1.0
+    return lam, vec
 
 
 def _log_divided_differences(lam):

@@ -132,3 +132,42 @@ def test_rank_one_blocks_inside_the_local_product_equal_the_sum_of_matrices(
         got = asm.matrix(asm.local_bilinear(C, rank_one=(u, w))).toarray()
         assert np.abs(got - expected).max() < 1e-13 * np.abs(expected).max()
     assert ("test with rank one" in asm._cache) == cache
+
+
+def test_inverse_and_determinant_by_cofactors_equal_lapack():
+    """Cofactor inverse and determinant against ``np.linalg`` on deformation
+    gradients near the identity (det F in [0.5, 2]): both are backward
+    stable there, so they agree to a few ulps (1e-14 relative)."""
+    from skfem_rkpm.mechanics.kinematics import inverse_and_determinant
+
+    rng = np.random.default_rng(8)
+    F = np.eye(3) + 0.2 * rng.uniform(-1, 1, size=(500, 3, 3))
+    Finv, J = inverse_and_determinant(F)
+    np.testing.assert_allclose(J, np.linalg.det(F), rtol=1e-14)
+    assert np.abs(Finv - np.linalg.inv(F)).max() < 1e-14 * np.abs(Finv).max()
+    assert np.abs(F @ Finv - np.eye(3)).max() < 1e-14
+
+
+def test_closed_form_spectral_decomposition_of_planar_b_equals_eigh():
+    """Plane ``b`` (no coupling with the third axis) is diagonalized in closed
+    form: the eigenvalues equal LAPACK's (sorted; 1e-15 for entries of
+    order 1), the eigenvectors are orthonormal and rebuild ``b``, also for
+    equal in-plane eigenvalues (the isotropic point) and for ``b_33`` equal
+    to one of them."""
+    from skfem_rkpm.mechanics.materials import _spectral
+
+    rng = np.random.default_rng(9)
+    F = np.eye(3) + 0.3 * rng.uniform(-1, 1, size=(400, 3, 3))
+    F[:, 2, :2] = F[:, :2, 2] = 0.0
+    F[:3] = np.diag([1.1, 1.1, 0.9])  # equal in-plane eigenvalues
+    F[3] = np.diag([1.0, 1.2, 1.0])  # b_33 equal to an in-plane one
+    b = F @ F.transpose(0, 2, 1)
+    lam, vec = _spectral(b)
+    np.testing.assert_allclose(np.sort(lam, axis=1), np.linalg.eigvalsh(b), atol=1e-15,
+                               rtol=1e-15)
+    assert np.abs(vec @ vec.transpose(0, 2, 1) - np.eye(3)).max() < 1e-15
+    assert np.abs((vec * lam[:, None, :]) @ vec.transpose(0, 2, 1) - b).max() < 1e-14
+    coupled = b.copy()
+    coupled[0, 0, 2] = coupled[0, 2, 0] = 0.1  # one coupled point: LAPACK for all
+    lam, vec = _spectral(coupled)
+    np.testing.assert_allclose(lam, np.linalg.eigvalsh(coupled))

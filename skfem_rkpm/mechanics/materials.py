@@ -29,8 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import inverse_and_determinant
-
 __all__ = ["Hardening", "perfect", "linear", "swift", "voce", "table", "J2Material",
            "MaterialState", "ReturnMapError"]
 
@@ -431,7 +429,7 @@ class J2Material:
         new_state : MaterialState
         A : ndarray, shape (n, 3, 3, 3, 3) or (n, m, m), or None
         """
-        Finv, _ = inverse_and_determinant(F)
+        Finv = np.linalg.inv(F)
         b = F @ state.Cp_inv @ F.transpose(0, 2, 1)
         b = 0.5 * (b + b.transpose(0, 2, 1))
         lam, vec = _spectral(b)

@@ -194,8 +194,8 @@ def _find_pairs(x, nodes, radius, box, axes):
 
 @njit(**_OPTIONS)
 def _fill(x, particles, indptr, indices, kcode, box, axes, basis, build,
-          lptr, lj, le, llow, gradients, values, grads, rcond):
-    """Values, gradients and reciprocal condition numbers per point.
+          lptr, lj, le, llow, gradients, values, grads, rcond, window):
+    """Values, gradients, kernel weights and reciprocal condition numbers per point.
 
     The formulas and the order of the operations are those of
     :func:`skfem_rkpm.approximation.shape._build` (``_kernel_weights``, ``_monomials``,
@@ -247,6 +247,7 @@ def _fill(x, particles, indptr, indices, kcode, box, axes, basis, build,
                 for k in range(1, dim):
                     ph = ph * pk[k]
                 phi[p] = ph
+                window[lo + p] = ph
                 for k in range(dim):
                     others = 1.0
                     first = True
@@ -263,6 +264,7 @@ def _fill(x, particles, indptr, indices, kcode, box, axes, basis, build,
                 r = np.sqrt(r2)
                 ph, dph = _kernel(r / a, kcode)
                 phi[p] = ph
+                window[lo + p] = ph
                 scale = dph / (a * r) if r > 0 else 0.0
                 for k in range(dim):
                     dphi[p, k] = scale * d[k]
@@ -380,8 +382,9 @@ def build(x, nodes, radius, build, lowered, kernel, support, gradients):
 
     ``x`` (dim, npoints), ``nodes`` (dim, nnodes), ``radius`` (nnodes,);
     ``build, lowered`` from :func:`~skfem_rkpm.approximation.shape._monomial_recurrences`.
-    Returns ``(indptr, indices, values, grads, rcond)``, or ``(indptr,
-    indices, None, None, None)`` if a point is covered by fewer than ``m``
+    Returns ``(indptr, indices, values, grads, rcond, kernel)`` (``kernel``:
+    the window φ of each pair), or ``(indptr, indices, None, None, None,
+    None)`` if a point is covered by fewer than ``m``
     particles (the numpy path then reports it), or None if the particles
     span more than the float range (the numpy path then handles them).
     """
@@ -397,15 +400,16 @@ def build(x, nodes, radius, build, lowered, kernel, support, gradients):
     radius = np.ascontiguousarray(radius, dtype=float)
     indptr, indices = find_pairs(xt, nt, radius, support)
     if np.diff(indptr).min(initial=m) < m:
-        return indptr, indices, None, None, None
+        return indptr, indices, None, None, None, None
     npoints, npairs = x.shape[1], len(indices)
     values = np.empty(npairs)
     grads = np.empty((dim, npairs) if gradients else (dim, 0))
     rcond = np.empty(npoints)
+    window = np.empty(npairs)
     _fill(xt, np.column_stack([nt, radius]), indptr, indices, KERNEL_CODES[kernel],
           SUPPORT_CODES[support] == 1, tuple(range(dim)), tuple(range(m)),
-          *_recurrences(build, lowered), gradients, values, grads, rcond)
-    return indptr, indices, values, grads if gradients else None, rcond
+          *_recurrences(build, lowered), gradients, values, grads, rcond, window)
+    return indptr, indices, values, grads if gradients else None, rcond, window
 
 
 def find_pairs(x, nodes, radius, support):

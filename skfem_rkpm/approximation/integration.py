@@ -18,7 +18,8 @@ basis order ``n`` (shifted to the particle and scaled by its support).  The
 Shepard-weighted mean subtracted from ``a_I`` keeps the derivative of the
 partition of unity, Σ_I ∇̃Ψ_I = 0 at every point, so internal forces are
 self-equilibrated for any stress.  The coefficients of all particles are
-fixed together (one sparse symmetric solve) so that, with the quadrature in
+fixed together (one sparse symmetric positive definite solve, by
+AMG-preconditioned conjugate gradients where pyamg is installed) so that, with the quadrature in
 use,
 
     ∫̂_Ω ∇̃Ψ_I p_α dΩ + ∫̂_Ω Ψ_I ∇p_α dΩ = ∫̂_Γ Ψ_I p_α n dΓ    for |α| ≤ n - 1.
@@ -56,13 +57,18 @@ def facet_geometry(mesh, intorder, facets=None, quadrature=None):
                       intorder=intorder, quadrature=quadrature)
 
 
-def _pair_monomials(table, x, nodes, scale, exps):
-    """p_β((x_q - X_I)/s_I) and ∇p_β for every pair of ``table``: (n, m), (dim, n, m)."""
-    rows, cols = table.rows, table.indices
-    xi = (x[:, rows] - nodes[:, cols]) / scale[cols]
-    n, dim = xi.shape[1], xi.shape[0]
+def _pair_monomials(rows, cols, x, nodes, scale, exps):
+    """p_β((x_q - X_I)/s_I) and ∇p_β for the pairs ``(rows, cols)``: (n, m), (dim, n, m).
+
+    Only the constant (``exps`` one zero row, basis order 1): ones and zeros
+    without touching the coordinates.
+    """
+    n, dim = len(rows), x.shape[0]
     p = np.ones((n, len(exps)))
     dp = np.zeros((dim, n, len(exps)))
+    if not exps.any():
+        return p, dp
+    xi = (x[:, rows] - nodes[:, cols]) / scale[cols]
     for j, e in enumerate(exps):
         for k in range(dim):
             p[:, j] *= xi[k] ** e[k]
@@ -74,6 +80,16 @@ def _pair_monomials(table, x, nodes, scale, exps):
                 d *= xi[l] ** (e[l] - (l == k))
             dp[k, :, j] = d
     return p, dp
+
+
+def _pair_kernel(table, rows, x, nodes, radius, kernel, support):
+    """The kernel φ_I(x_q) of every pair: the one the shape table was built
+    with, or computed again for a table without it."""
+    if table.kernel is not None:
+        return table.kernel
+    phi, _ = _window((x[:, rows] - nodes[:, table.indices]).T, radius[table.indices],
+                     get_kernel(kernel), support)
+    return phi
 
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
@@ -124,11 +140,10 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     exps = monomial_exponents(dim, order - 1)
     m = len(exps)
     scale = radius
-    window = get_kernel(kernel)
     rows, cols = table.rows, table.indices
 
-    phi, _ = _window((x[:, rows] - nodes[:, cols]).T, radius[cols], window, support)
-    p, dp = _pair_monomials(table, x, nodes, scale, exps)
+    phi = _pair_kernel(table, rows, x, nodes, radius, kernel, support)
+    p, dp = _pair_monomials(rows, cols, x, nodes, scale, exps)
     if axisymmetric:
         weights, wb = weights * x[0], wb * xb[0]
     w = weights[rows]
@@ -140,8 +155,8 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         A[:, ab] = np.bincount(cols, w * phi * ppT[:, ab], minlength=nnodes)
     A = A.reshape(nnodes, m, m)
 
-    rhs = _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes,
-                          scale, exps, dp, p, axisymmetric)
+    rhs = _constraint_rhs(table, rows, x, weights, boundary_table, xb, wb, normals,
+                          nodes, scale, exps, dp, p, axisymmetric)
     covered = np.bincount(cols, minlength=nnodes)
     det = np.linalg.det(A)
     bad = np.flatnonzero((covered < m) | ~(np.abs(det) > 1e-14 * np.abs(A[:, 0, 0]) ** m))
@@ -161,8 +176,7 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                              + "); use integration='vci'")
         return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
                                                    nodes, radius)
-    xi = _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale,
-                                exps)  # (nnodes, m, dim)
+    xi = _balanced_coefficients(table, rows, phi, p, weights, A, rhs)  # (nnodes, m, dim)
     a = np.einsum("na,nak->kn", p, xi[cols])  # a_I(x_q) at the pairs
     nq = table.npoints
     shepard = phi / np.bincount(rows, phi, minlength=nq)[rows]
@@ -171,8 +185,8 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     return table.grads + phi[None, :] * (a - mean[:, rows])
 
 
-def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes, scale,
-                    exps, dp, p, axisymmetric):
+def _constraint_rhs(table, rows, x, weights, boundary_table, xb, wb, normals, nodes,
+                    scale, exps, dp, p, axisymmetric):
     """``r_I,k,α = ∫_Γ Ψ_I p_α n_k - ∫_Ω Ψ_I ∂_k p_α - ∫_Ω ∂_k Ψ_I p_α``, shape
     (nnodes, dim, m): what the corrections must integrate to.
 
@@ -181,11 +195,11 @@ def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes, s
     """
     dim, nnodes = nodes.shape
     m = len(exps)
-    rows, cols = table.rows, table.indices
+    cols = table.indices
     w = weights[rows]
     rhs = np.zeros((nnodes, dim, m))
     brow, bcol = boundary_table.rows, boundary_table.indices
-    pb, _ = _pair_monomials(boundary_table, xb, nodes, scale, exps)
+    pb, _ = _pair_monomials(brow, bcol, xb, nodes, scale, exps)
     for k in range(dim):
         for a in range(m):
             rhs[:, k, a] = (
@@ -203,8 +217,8 @@ def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes, s
     return rhs
 
 
-def _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale, exps):
-    """Coefficients ξ_I of the balanced correction (one sparse solve).
+def _balanced_coefficients(table, rows, phi, p, weights, A, rhs):
+    """Coefficients ξ_I of the balanced correction (one sparse SPD solve).
 
     The correction ``c_I = φ_I (a_I - Σ_J S_J a_J)``, ``a_I = ξ_I · p_I`` and
     ``S_J = φ_J / Σ_K φ_K`` (Shepard functions), sums to zero at every
@@ -220,34 +234,95 @@ def _balanced_coefficients(table, phi, p, weights, A, rhs, nodes, scale, exps):
     divergence theorem for that polynomial, exact for the quadrature.  So
     ``ξ`` of one particle per body is set to zero and its constraints,
     implied by the others, are dropped: the rest of ``M`` is positive
-    definite.
+    definite, and is solved by :func:`_pinned_spd_solve`.
     """
-    rows, cols = table.rows, table.indices
+    cols = table.indices
     nnodes, m, _ = A.shape
     dim = rhs.shape[1]
     nq = table.npoints
     n = nnodes * m
+    # H in CSR directly: row q holds the m unknowns of each pair of q, in order
     unknown = (cols[:, None] * m + np.arange(m)[None, :]).ravel()
-    H = sp.csr_matrix(((phi[:, None] * p).ravel(), (np.repeat(rows, m), unknown)),
+    H = sp.csr_matrix(((phi[:, None] * p).ravel(), unknown, table.indptr * m),
                       shape=(nq, n))
     Phi = np.bincount(rows, phi, minlength=nq)
-    block = np.arange(n).reshape(nnodes, m)
-    D = sp.csr_matrix((A.ravel(), (np.repeat(block, m, axis=1).ravel(),
-                                   np.tile(block, (1, m)).ravel())), shape=(n, n))
-    M = D - H.T @ sp.diags(weights / Phi) @ H
+    WH = sp.csr_matrix((H.data * np.repeat(weights / Phi, m * np.diff(table.indptr)),
+                        unknown, H.indptr), shape=H.shape)
+    D = sp.bsr_matrix((A, np.arange(nnodes), np.arange(nnodes + 1)),
+                      shape=(n, n)).tocsr()
+    M = (D - WH.T.tocsr() @ H).tocsr()
 
-    incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(nq, nnodes))
-    _, body = connected_components(incidence.T @ incidence, directed=False)
-    _, pinned = np.unique(body, return_index=True)  # first particle of each body
-    free = np.ones(n, dtype=bool)
-    free[block[pinned].ravel()] = False
+    _, body = connected_components(M, directed=False)
+    _, pinned = np.unique(body[::m], return_index=True)  # first particle of each body
+    block = np.arange(n).reshape(nnodes, m)
     b = rhs.transpose(0, 2, 1).reshape(n, dim)
-    Mf = M[free][:, free].tocsc()
-    lu = splu(Mf, permc_spec="MMD_AT_PLUS_A")
-    x = np.zeros((n, dim))
-    x[free] = lu.solve(b[free])
-    x[free] += lu.solve(b[free] - Mf @ x[free])  # one step of refinement
-    return x.reshape(nnodes, m, dim)
+    return _pinned_spd_solve(M, b, block[pinned].ravel()).reshape(nnodes, m, dim)
+
+
+#: relative residual (2-norm, per right-hand side) at which the iterative VCI
+#: solve stops: the integration constraints then hold to this fraction of
+#: their right-hand side, round-off for the patch test
+RTOL = 1e-13
+#: up to this many unknowns the VCI system is factored (SuperLU): measured on
+#: the rectangle of docs/performance.md ("Building an RK basis"), the
+#: factorization is as fast as AMG + CG at 1.7e4 unknowns (0.8 against
+#: 0.9 s) and slower above (16 against 9 s at 1.1e5), where its fill grows
+#: faster than the particles
+DIRECT_MAX_UNKNOWNS = 20_000
+
+
+def _pinned_spd_solve(M, b, pinned, rtol=RTOL):
+    """Solve ``M x = b`` with ``x = 0`` at the ``pinned`` unknowns (their
+    equations dropped), ``M`` symmetric and positive definite on the rest.
+
+    Above :data:`DIRECT_MAX_UNKNOWNS` unknowns and with pyamg installed
+    (``pip install skfem-rkpm[amg]``): conjugate gradients preconditioned by
+    smoothed-aggregation AMG, one right-hand side after the other, to the
+    relative residual ``rtol`` (checked on ``b - M x`` itself); time and
+    memory grow like the nonzeros of ``M``.  Otherwise a sparse LU
+    factorization (SuperLU) with one step of refinement, whose fill grows
+    faster than the particles (it runs out of 20 GB near 7e5 particles in
+    2D).  Both agree to about ``rtol`` times the condition number of ``M``
+    (docs/performance.md, "Building an RK basis").
+
+    Raises
+    ------
+    RuntimeError
+        If the iteration does not reach ``rtol`` (``M`` is then not positive
+        definite on the free unknowns).
+    """
+    n = M.shape[0]
+    free = np.ones(n)
+    free[pinned] = 0.0
+    # the pinned rows and columns become rows of the identity (x = 0 there)
+    keep = sp.diags(free)
+    Mf = (keep @ M @ keep + sp.diags(1.0 - free)).tocsr()
+    Mf.eliminate_zeros()
+    b = b * free[:, None]
+    try:
+        if n <= DIRECT_MAX_UNKNOWNS:
+            raise ImportError
+        import pyamg
+    except ImportError:
+        lu = splu(Mf.tocsc(), permc_spec="MMD_AT_PLUS_A")
+        x = lu.solve(b)
+        return x + lu.solve(b - Mf @ x)  # one step of refinement
+    solver = pyamg.smoothed_aggregation_solver(
+        Mf, symmetry="symmetric", smooth="jacobi", improve_candidates=None,
+        presmoother=("jacobi", {"iterations": 2}),
+        postsmoother=("jacobi", {"iterations": 2}))
+    x = np.zeros_like(b)
+    for k in range(b.shape[1]):
+        if np.any(b[:, k]):
+            x[:, k] = solver.solve(b[:, k], tol=rtol, accel="cg", maxiter=500)
+    # the true residual may exceed the recursive one CG stops on by a little
+    residual = np.linalg.norm(b - Mf @ x, axis=0)
+    if not np.all(residual <= 10 * rtol * np.linalg.norm(b, axis=0)):
+        raise RuntimeError(
+            "VCI: conjugate gradients did not reach a relative residual of "
+            f"{rtol:g} on the correction system ({n} unknowns; reached "
+            f"{np.max(residual / np.linalg.norm(b, axis=0)):.2g})")
+    return x
 
 
 def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
@@ -274,7 +349,7 @@ def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
     divergence theorem for linear fields, exact for the quadrature).  ``ξ`` of
     ``dim + 1`` particles spanning each body is set to zero and their
     constraints, implied by the others, are dropped: the rest of ``M`` is
-    positive definite.
+    positive definite, and is solved by :func:`_pinned_spd_solve`.
 
     Returns
     -------
@@ -313,17 +388,10 @@ def _symmetric_correction(table, x, weights, phi, r, nodes, radius):
     WB = sp.csr_matrix((data * np.repeat(weights, m * count), indices, indptr),
                        shape=B.shape)
     M = (sp.diags(np.bincount(cols, weights[rows] * phi, minlength=nnodes))
-         - (WB.T.tocsr() @ B))
+         - (WB.T.tocsr() @ B)).tocsr()
 
-    incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(nq, nnodes))
-    nbodies, body = connected_components(incidence.T @ incidence, directed=False)
-    free = np.ones(nnodes, dtype=bool)
-    free[_affine_frame(nodes, body, nbodies)] = False
-    Mf = M[free][:, free].tocsc()
-    lu = splu(Mf, permc_spec="MMD_AT_PLUS_A")
-    xi = np.zeros((nnodes, dim))
-    xi[free] = lu.solve(r[free])
-    xi[free] += lu.solve(r[free] - Mf @ xi[free])  # one step of refinement
+    nbodies, body = connected_components(M, directed=False)
+    xi = _pinned_spd_solve(M, r, _affine_frame(nodes, body, nbodies))
 
     # t(x_q) = Σ_J P_J φ_J ξ_J, then c_I = φ_I (ξ_I - P_Iᵀ G⁻¹ t)
     t = np.stack([np.bincount(rows, phi * P[:, a] * xi[cols, k], minlength=nq)

@@ -105,6 +105,10 @@ class ShapeTable:
         ``∂Ψ_I/∂X_k(X_q)``.
     nnodes : int
         Number of particles (columns).
+    kernel : ndarray, shape (npairs,) or None
+        The kernel (window) ``φ(X_q - X_I; a_I)`` of each pair, Eq. (3.12),
+        as the shape functions were built with it (VCI weights its
+        corrections with it).
     """
 
     indptr: np.ndarray
@@ -112,6 +116,7 @@ class ShapeTable:
     values: np.ndarray
     grads: np.ndarray
     nnodes: int
+    kernel: np.ndarray = None
 
     @property
     def npoints(self):
@@ -521,10 +526,10 @@ def _build_compiled(module, x, nodes, radius, exps, window, support, gradients,
                           support, gradients)
     if arrays is None:
         return None
-    indptr, indices, values, grads, rcond = arrays
+    indptr, indices, values, grads, rcond, kernel = arrays
     if values is None or not np.all(rcond >= 2.0 * rcond_min):
         return None
-    return ShapeTable(indptr, indices, values, grads, nodes.shape[1])
+    return ShapeTable(indptr, indices, values, grads, nodes.shape[1], kernel)
 
 
 def coordinates(x, what):
@@ -564,6 +569,7 @@ def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
         return table, too_few, "too few particles cover it"
 
     values = np.empty(len(inode))
+    kernel = np.empty(len(inode))
     grads = np.empty((dim, len(inode))) if gradients else None
     rcond = np.empty(npoints)
     build, lowered = _monomial_recurrences(exps)
@@ -583,10 +589,11 @@ def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
         v, g, rc = _moment_solve(H, lowered, phi, dphi, inv_s, starts,
                                  counts[start:stop], gradients)
         values[lo:hi] = v
+        kernel[lo:hi] = phi
         if gradients:
             grads[:, lo:hi] = g
         rcond[start:stop] = rc
-    table.values, table.grads = values, grads
+    table.values, table.grads, table.kernel = values, grads, kernel
     bad = np.flatnonzero(~(rcond >= rcond_min))
     return table, bad, ("the covering particles do not span the basis "
                         "(moment matrix singular or ill-conditioned)")

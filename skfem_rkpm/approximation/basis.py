@@ -37,28 +37,56 @@ def _rows(table, start, stop):
     return ShapeTable(table.indptr[start:stop + 1] - lo, table.indices[lo:hi],
                       table.values[lo:hi],
                       None if table.grads is None else table.grads[:, lo:hi],
-                      table.nnodes)
+                      table.nnodes,
+                      None if table.kernel is None else table.kernel[lo:hi])
 
 
-def _padded(table, nelems, nqp, grads):
+def _cell_particles(table, nelems, nqp):
+    """The particles of each cell and the slot of every pair among them.
+
+    The particles of a cell are those of its ``nqp`` quadrature points
+    (consecutive rows of ``table``), each once, in increasing order: the
+    cell-particle incidence in CSR with its duplicates merged, a sort of each
+    cell's own pairs rather than of all pairs together.
+
+    Returns
+    -------
+    indptr, indices : ndarray
+        Particles of cell ``e``: ``indices[indptr[e]:indptr[e + 1]]``.
+    slot : ndarray, shape (npairs,)
+        Position of each pair's particle in the list of its cell.
+    """
+    cell_pairs = table.indptr[::nqp]  # pairs of cell e: cell_pairs[e]:cell_pairs[e + 1]
+    incidence = sp.csr_matrix((np.ones(len(table.indices), dtype=np.int32),
+                               table.indices, cell_pairs),
+                              shape=(nelems, table.nnodes))
+    incidence.sum_duplicates()  # sorts and merges each row
+    indptr = incidence.indptr.astype(np.int64)
+    indices = incidence.indices.astype(np.int64)
+    count = np.diff(indptr)
+    # each entry holds its position in its row; the pairs read it there
+    incidence.data = (np.arange(len(indices)) - np.repeat(indptr[:-1], count)
+                      ).astype(incidence.data.dtype)
+    cell = np.repeat(np.arange(nelems), np.diff(cell_pairs))
+    slot = np.asarray(incidence[cell, table.indices]).ravel()
+    return indptr, indices, slot
+
+
+def _padded(table, nelems, nqp, grads, cells=None):
     """Per-cell padded node lists and values from a pair table.
 
+    ``cells``: :func:`_cell_particles` of the table if already known.
     Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems, nqp)
     and ``grads`` (dim, nloc, nelems, nqp) (None if ``grads`` is None).
     """
-    rows, nodes = table.rows, table.indices
-    cell, qp = np.divmod(rows, nqp)
-    key = cell * table.nnodes + nodes
-    unique, inverse = np.unique(key, return_inverse=True)
-    ucell = unique // table.nnodes
-    first = np.searchsorted(ucell, np.arange(nelems))
-    slot_of_unique = np.arange(len(unique)) - first[ucell]
-    nloc = int(slot_of_unique.max()) + 1
-    element_nodes = np.empty((nloc, nelems), dtype=np.int64)
+    indptr, indices, slot = cells or _cell_particles(table, nelems, nqp)
+    count = np.diff(indptr)
+    nloc = int(count.max())
     # padding slots point at the cell's first particle and carry zeros
-    element_nodes[:] = (unique[first] % table.nnodes)[None, :]
-    element_nodes[slot_of_unique, ucell] = unique % table.nnodes
-    slot = slot_of_unique[inverse]
+    element_nodes = np.repeat(indices[indptr[:-1]][None, :], nloc, axis=0)
+    element_nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
+                  np.repeat(np.arange(nelems), count)] = indices
+    cell, qp = np.divmod(table.rows, nqp)
     values = np.zeros((nloc, nelems, nqp))
     values[slot, cell, qp] = table.values
     g = None
@@ -84,8 +112,9 @@ class _RKBase(AbstractBasis):
         self.tind = None
         self.mapping = geometry.mapping
         nqp = self.X.shape[-1]
+        self._cells = _cell_particles(table, self.nelems, nqp)
         self.element_nodes, self.values, self.grads = _padded(
-            table, self.nelems, nqp, test_grads
+            table, self.nelems, nqp, test_grads, self._cells
         )
         self.Nbfun = self.ncomp * self.element_nodes.shape[0]
 
@@ -402,8 +431,8 @@ class RKBasis(_RKBase):
             return self
         if getattr(self, "_trial", None) is None:
             trial = copy.copy(self)
-            _, _, trial.grads = _padded(self.table, self.nelems,
-                                        self.X.shape[-1], self.table.grads)
+            _, _, trial.grads = _padded(self.table, self.nelems, self.X.shape[-1],
+                                        self.table.grads, self._cells)
             trial.test_grads = self.table.grads
             trial._basis = None
             trial._trial = trial

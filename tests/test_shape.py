@@ -156,3 +156,22 @@ def test_bad_radius_and_support_shape():
         rk_shape_functions(nodes, nodes, np.r_[0.0, np.ones(24)])
     with pytest.raises(ValueError, match="'radial' or 'box'"):
         rk_shape_functions(nodes, nodes, 0.5, support="disc")
+
+
+@pytest.mark.parametrize("support", ["radial", "box"])
+def test_table_keeps_the_kernel_of_every_pair(support):
+    """``ShapeTable.kernel`` is the window φ(X - X_I; a_I) of Eq. (3.12) at
+    each pair, evaluated here independently from the distances."""
+    from skfem_rkpm.approximation.kernels import cubic_spline
+
+    rng = np.random.default_rng(4)
+    nodes = rng.uniform(0, 1, (2, 60))
+    x = rng.uniform(0.2, 0.8, (2, 40))
+    radius = rng.uniform(0.3, 0.4, 60)
+    t = rk_shape_functions(x, nodes, radius, support=support, backend="numpy")
+    d = np.abs(x[:, t.rows] - nodes[:, t.indices]) / radius[t.indices]
+    if support == "radial":
+        expected = cubic_spline(np.hypot(d[0], d[1]))[0]
+    else:
+        expected = cubic_spline(d[0])[0] * cubic_spline(d[1])[0]
+    np.testing.assert_allclose(t.kernel, expected, rtol=1e-12, atol=1e-15)

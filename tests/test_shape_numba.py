@@ -32,6 +32,7 @@ def assert_same_table(a, b):
     assert a.nnodes == b.nnodes
     scale = np.abs(a.values).max()
     np.testing.assert_allclose(b.values, a.values, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(b.kernel, a.kernel, rtol=0, atol=1e-14)  # φ <= 1
     if a.grads is None:
         assert b.grads is None
     else:

@@ -202,12 +202,13 @@ def _constraint_rhs(table, rows, x, weights, boundary_table, xb, wb, normals, no
     pb, _ = _pair_monomials(brow, bcol, xb, nodes, scale, exps)
     for k in range(dim):
         for a in range(m):
+            integrand = table.grads[k] * p[:, a]
+            if exps[a][k] > 0:  # ∂_k p_α = 0 otherwise
+                integrand += table.values * dp[k, :, a]
             rhs[:, k, a] = (
                 np.bincount(bcol, wb[brow] * boundary_table.values
                             * pb[:, a] * normals[k, brow], minlength=nnodes)
-                - np.bincount(cols, w * (table.values * dp[k, :, a]
-                                         + table.grads[k] * p[:, a]),
-                              minlength=nnodes)
+                - np.bincount(cols, w * integrand, minlength=nnodes)
             )
     if axisymmetric:  # ∂R/∂R = 1: the extra term -∫ Ψ_I p_α dR dZ
         w_plain = (weights / x[0])[rows]

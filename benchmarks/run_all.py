@@ -59,6 +59,7 @@ SUITE = {
     "form_assembly": ([], ["--no-skfem", "--repeat", "3"], (1.5, 0.5)),
     "vci_symmetry": ([], ["--levels", "4", "8", "--supports", "2", "--repeat", "1"],
                      (6, 0.5)),
+    "basis_build": ([], ["--sizes", "1e4", "17227", "--repeat", "1"], (3, 0.5)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

@@ -296,9 +296,11 @@ def _pinned_spd_solve(M, b, pinned, rtol=RTOL):
     free = np.ones(n)
     free[pinned] = 0.0
     # the pinned rows and columns become rows of the identity (x = 0 there)
-    keep = sp.diags(free)
-    Mf = (keep @ M @ keep + sp.diags(1.0 - free)).tocsr()
+    Mf = M.tocsr(copy=True)
+    row = np.repeat(np.arange(n), np.diff(Mf.indptr))
+    Mf.data *= free[row] * free[Mf.indices]
     Mf.eliminate_zeros()
+    Mf = Mf + sp.diags(1.0 - free, format="csr")
     b = b * free[:, None]
     try:
         if n <= DIRECT_MAX_UNKNOWNS:

@@ -85,13 +85,19 @@ def test_corner_refined_ring_from_gmsh_is_homogeneous_without_friction():
     assert -result.history[-1].reactions["platen"][1] == pytest.approx(force, rel=1e-5)
 
 
-def test_auto_locking_is_fbar_for_fem_and_for_rkpm_only_under_stick():
+def test_auto_locking_is_fbar_except_for_quadratic_elements_and_sliding_rkpm():
+    """The rule measured in benchmarks/locking_study.py (docs/plasticity.md):
+    F-bar for Q1 and for RKPM, except RKPM under sliding friction (the
+    ring's corner cell inverts with it) and quadratic elements."""
     scene = load_scene(builtin_scenes()["ring"], COARSE)
     assert scene["discretization"]["locking"] == "auto"
     assert build(scene, "fem").problem.locking == "fbar"
-    assert build(scene, "rkpm").problem.locking is None
-    stick = load_scene(builtin_scenes()["ring"], [*COARSE, "tools.platen.friction=stick"])
-    assert build(stick, "rkpm").problem.locking == "fbar"
+    assert build(scene, "rkpm").problem.locking is None  # μ = 0.15
+    for friction in ("stick", "0.0"):
+        other = load_scene(builtin_scenes()["ring"], [*COARSE, f"tools.platen.friction={friction}"])
+        assert build(other, "rkpm").problem.locking == "fbar"
+    quad2 = load_scene(builtin_scenes()["ring"], [*COARSE, 'discretization.element="quad2"'])
+    assert build(quad2, "fem").problem.locking is None
 
 
 def paper_ring(method, friction, *settings):

@@ -24,7 +24,7 @@ from .memory import check_rk_memory
 from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from, mesh_from,
                     prescribed_components, spacing_radius)
 
-__all__ = ["Simulation", "build", "tool_from_scene"]
+__all__ = ["Simulation", "build", "resolve_locking", "tool_from_scene"]
 
 ELEMENTS = {"quad1": ElementQuad1, "quad2": ElementQuad2, "tri1": ElementTriP1,
             "tri2": ElementTriP2}
@@ -53,6 +53,32 @@ class Simulation:
     @property
     def method(self):
         return "rkpm" if isinstance(self.basis, RKBasis) else "fem"
+
+
+def resolve_locking(locking, method, element, scene):
+    """The locking control ``"auto"`` stands for: F-bar for RKPM and linear
+    elements, none for quadratic elements and for RKPM when a tool slides
+    with Coulomb friction (0 < μ, not stick).
+
+    Measured against exact and converged answers (docs/plasticity.md,
+    "Which locking control", ``benchmarks/locking_study.py``): without
+    F-bar, Q1 gives 1.23 times Prandtl's punch pressure and a third of
+    Cook's deflection, RKPM 1.07 and 0.90; with it both stay within 3.5 %
+    and 7 %.  F-bar over-relaxes quadratic elements (Prandtl 0.93, Cook
+    1.27), which lock little without it (1.04, 0.96).  On the ring under
+    sliding friction F-bar inverts RKPM's outer corner cell at 31 % height
+    reduction (also with augmented contact), where RKPM without it
+    completes at the converged answer.
+    """
+    if locking != "auto":
+        return locking
+    if method == "fem":
+        return "fbar" if element in ("quad1", "tri1") else "none"
+    slides = False
+    for name, section in scene.items():
+        if name.startswith("tools.") and section.get("friction") not in (None, "stick"):
+            slides = slides or float(section["friction"]) > 0.0
+    return "none" if slides else "fbar"
 
 
 def build(scene, method=None, trust_geo=False):
@@ -86,15 +112,7 @@ def build(scene, method=None, trust_geo=False):
             raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
                              f"the {type(mesh).__name__} cells")
         basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
-    locking = disc["locking"]
-    if locking == "auto":
-        sticks = any(section.get("friction") == "stick"
-                     for name, section in scene.items() if name.startswith("tools."))
-        # F-bar is the cure of linear elements; quadratic ones lock far less,
-        # and on the ring F-bar made the Q2 corner cell invert at 16 %
-        # (without it Q2 completes: docs/contact.md, section 5a)
-        linear_fem = method == "fem" and disc["element"] in ("quad1", "tri1")
-        locking = "fbar" if linear_fem or (method != "fem" and sticks) else "none"
+    locking = resolve_locking(disc["locking"], method, disc["element"], scene)
     locking = None if locking == "none" else locking
     if method == "rkpm" and disc["integration"] in ("scni", "dni"):
         locking = None  # F-bar averages over a cell: one point per particle, nothing to do

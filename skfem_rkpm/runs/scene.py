@@ -106,11 +106,11 @@ SCHEMA = {
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),
                        doc="fem: element"),
-        "locking": Key("str", "none", choices=("none", "fbar", "auto"),
-                       doc="volumetric locking control; auto: F-bar for linear FEM "
-                           "elements, and for RKPM only when a tool sticks (sliding, "
-                           "RKPM runs better without; see docs/ring.md); ignored with "
-                           "nodal integration"),
+        "locking": Key("str", "auto", choices=("none", "fbar", "auto"),
+                       doc="volumetric locking control; auto: F-bar for RKPM and linear "
+                           "FEM elements, none for quadratic elements and for RKPM when "
+                           "a tool slides with friction (measured: docs/plasticity.md); "
+                           "ignored with nodal integration"),
     },
     "material": {
         "E": Key("float", required=True, check=_positive, doc="Young's modulus"),

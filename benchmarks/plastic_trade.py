@@ -15,7 +15,7 @@ Methods on ``rectangle(1, 1, n, n)`` meshes (``kind="tri"`` for T3 and T6):
 
 * RK: ``RKBasis(mesh, vector=True, support=c, order=k, intorder=q,
   integration=...)`` with ``locking="fbar"`` (what ``locking = "auto"``
-  picks for RKPM when a tool sticks), and two runs without F-bar;
+  picks for RKPM unless a tool slides), and two runs without F-bar;
 * FEM: Q1 (2x2 Gauss), Q1 with F-bar, Q2 (3x3), T3 (3 points), T6 (6 points).
 
 Reference: Q1 with F-bar on 32², 64² and 128² cells, extrapolated with the

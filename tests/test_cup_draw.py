@@ -16,7 +16,7 @@ from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 COARSE_BLANK = ["geometry.divisions=[20, 2]", "discretization.dilation=2.0",
                 "tools.punch.motion=[0.0, -2.5]", "steps.count=4",
                 "output.fields=false", "output.figures=false"]
-HOLDER_FORCE = 6000.0  # N, the scene's constant force after the first 5 %
+HOLDER_FORCE = 6000.0  # N, the scene's constant holder force
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +42,6 @@ def test_cup_draw_forces_balance_and_the_holder_holds_its_force(cup_runs, method
     # their axial forces balance to the Newton tolerance (1e-6 relative)
     np.testing.assert_allclose(punch + die + holder, 0.0, atol=1e-5 * die.max())
     # the holder's travel is solved so that its push is the prescribed force
-    # (4 steps: t >= 0.25 > 0.05, the end of the ramp)
     np.testing.assert_allclose(-holder, HOLDER_FORCE, rtol=1e-8)
     assert np.all(-punch > 0) and np.all(np.diff(-punch) > 0)
 

@@ -242,7 +242,8 @@ def test_thick_cylinder_on_a_quarter_annulus_matches_lame(method):
     solution, converging at second order.
 
     Measured largest errors (inner radius): FEM 4.6e-3 on 6 × 12 cells
-    (graded 2:1), 1.1e-3 on 12 × 24; RKPM 2.8e-3 and 0.62e-3.  The error
+    (graded 2:1), 1.1e-3 on 12 × 24; RKPM 2.7e-3 and 0.67e-3 with the
+    default F-bar (2.8e-3 and 0.62e-3 without).  The error
     is mostly the polygon of chords that stands for the circles, O(Δθ²);
     the finite-strain terms are O(p/E) = 1e-4.
     """
@@ -250,7 +251,9 @@ def test_thick_cylinder_on_a_quarter_annulus_matches_lame(method):
     fine, _ = lame_errors(method, 12, 24)
     assert coarse < 6e-3
     assert fine < coarse / 3.5  # second order: 4 when halving the cells
-    assert hoop < 1e-3
+    # hoop displacement on the coarse cells, measured 1.05e-3 for RKPM with
+    # the default F-bar (0.78e-3 without), FEM below that
+    assert hoop < 1.5e-3
 
 
 def test_annulus_boundaries_and_full_ring():

@@ -60,7 +60,7 @@ def run_method(settings, method):
           f"{sum(r.cutbacks for r in history)} cut-backs, {cpu:.1f} s CPU")
     print(f"  at {depth[-1]:.2f} mm: punch {punch[-1]:.1f} N (peak {punch.max():.1f} N), "
           f"holder {holder[-1]:.3f} N, die {die[-1]:.1f} N, "
-          f"axial balance {np.abs(punch - holder - die).max():.2e} N, "
+          f"axial balance {np.abs(die - punch - holder).max():.2e} N, "
           f"draw-in {draw_in[-1]:.3f} mm, holder travel {lift[-1]:+.4f} mm")
     strains = sheet_strains(sim.basis, result.d, axisymmetric=True)
     print(f"  thickness strain: min {strains.thickness.min():.4f}, at the pole "
@@ -115,7 +115,8 @@ def main():
     for edge in sim.mesh.facets[:, sim.mesh.boundary_facets()].T:
         ax.plot(x[0, edge], x[1, edge], color="r", lw=0.8)
     for contact in rk["sim"].tools:
-        outline = contact.tool.outline(rk["result"].history[-1].t, extent=40.0)
+        tool = getattr(contact, "contact", contact).tool  # force-driven: the wrapped contact
+        outline = tool.outline(rk["result"].history[-1].t, extent=40.0)
         ax.plot(outline[0], outline[1], color="0.4", lw=1.5)
     ax.set_xlim(-1.0, BLANK_RADIUS + 2.0)
     ax.set_ylim(x[1].min() - 3.0, 6.0)

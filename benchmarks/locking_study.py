@@ -288,6 +288,8 @@ def scene_case(name, method, locking):
 
 
 def main_scenes(names):
+    if not names:
+        return
     print(f"{'scene':12s} {'method':7s} {'locking':7s} {'value':>8s} {'ref':>8s} "
           f"{'t':>5s} {'cpu s':>6s}  measure")
     for name in names:
@@ -300,6 +302,8 @@ def main_scenes(names):
 
 
 def main(names):
+    if not names:
+        return
     print(f"{'case':12s} {'method':7s} {'locking':7s} {'answer':>8s} {'exact':>6s} "
           f"{'ratio':>6s} {'cpu s':>6s}  status")
     for name in names:

@@ -40,6 +40,7 @@ ROOT = HERE.parent
 # "{figures}" is replaced by the folder of the figures.  Scripts of benchmarks/
 # missing here run with their defaults in both modes.
 SUITE = {
+    "locking_study": ([], ["prandtl", "compression", "cook"], (12, 1)),
     "shape_rate": ([], ["--max-points", "1e5", "--repeat", "2"], (2, 0.5)),
     "assembly_time": ([], ["--sizes", "20", "40", "80"], (2, 0.5)),
     "newton_iteration": (["--nodes", "1e3", "1e4", "4e4"], ["--nodes", "1e3", "1e4"],

@@ -12,7 +12,8 @@ Named boundaries: ``inner`` and ``outer`` (the circles) and, for a sector,
 
 import numpy as np
 
-from .meshes import _cells, _geometric_nodes, _make_mesh, _number, _positive
+from ._mesh_cells import _cells, _make_mesh, _number, _positive
+from .meshes import _geometric_nodes
 
 __all__ = ["annulus"]
 

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from ..approximation.constraints import transformation
 from .friction import DEFAULT_PENALTY_FACTOR, ContactState, _positive, default_penalty
 from .rigid_contact import _outer
-from .slave_points import _check_2d, _facets, _interleaved, _nodal_points
+from .slave_points import _check_model, _facets, _interleaved, _nodal_points
 from .tools import _left
 
 __all__ = ["NodeToSegmentContact"]
@@ -115,7 +115,10 @@ class NodeToSegmentContact:
         if not (np.isfinite(extension) and 0 <= extension < 0.5):
             raise ValueError(f"extension must lie in [0, 0.5), not {extension!r}")
         self.extension = float(extension)
-        _check_2d(basis, problem.model)
+        _check_model(basis, problem.model)
+        if problem.model == "3d":
+            raise ValueError("contact between deformable bodies is implemented in 2D "
+                             "(node to segment) only; in 3D use rigid tools")
         self.problem, self.name = problem, name
         mesh = basis.mesh
         self.slaves = _nodal_points(basis, _facets(mesh, slave),

@@ -21,7 +21,7 @@ import numpy as np
 
 __all__ = ["DEFAULT_PENALTY_FACTOR", "DEFAULT_TANGENTIAL_FACTOR", "DEFAULT_AUGMENTED_TOLERANCE",
            "default_penalty", "STICK_FRICTION", "friction_coefficient", "coulomb",
-           "ContactState"]
+           "coulomb_vector", "ContactState"]
 
 #: ω_n = DEFAULT_PENALTY_FACTOR · E / h_c per unit area of the contact
 #: boundary (h_c the particle spacing along it).  A contact pressure p then
@@ -116,6 +116,36 @@ def coulomb(pressure, trial, mu):
         return trial.copy(), np.zeros(trial.shape, bool)
     slip = np.abs(trial) > mu * pressure
     return np.where(slip, mu * pressure * np.sign(trial), trial), slip
+
+
+def coulomb_vector(pressure, trial, mu):
+    """Return map of the penalized Coulomb law (Eq. 4.6) in a tangent plane:
+    the slip direction is a vector.
+
+    Parameters
+    ----------
+    pressure : ndarray (m,)
+        Normal traction ``t_n ≥ 0``.
+    trial : ndarray (m, d)
+        Trial tangential traction ``t_t,n - ω_t Δg_t`` (vectors).
+    mu : float
+        Friction coefficient (0: frictionless, ``inf``: stick).
+
+    Returns
+    -------
+    shear : ndarray (m, d)
+        The trial traction in stick, ``μ t_n τ`` with ``τ = trial / |trial|``
+        in slip.
+    slip : ndarray (m,) of bool
+    """
+    if mu == 0.0:
+        return np.zeros_like(trial), pressure > 0
+    if mu == np.inf:
+        return trial.copy(), np.zeros(len(trial), bool)
+    size = np.linalg.norm(trial, axis=1)
+    slip = size > mu * pressure
+    scale = np.where(slip, mu * pressure / np.where(slip, size, 1.0), 1.0)
+    return scale[:, None] * trial, slip
 
 
 @dataclass

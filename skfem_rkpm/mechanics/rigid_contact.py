@@ -28,9 +28,9 @@ def _outer(a, b):
 
 def _directional(G, vectors):
     """Rows ``v_qᵀ G_q`` (sparse n × N): the derivative of ``v_q · u(x_q)``."""
-    n = vectors.shape[1]
-    P = sp.csr_matrix((vectors.T.ravel(), (np.repeat(np.arange(n), 2), np.arange(2 * n))),
-                      shape=(n, 2 * n))
+    dim, n = vectors.shape
+    P = sp.csr_matrix((vectors.T.ravel(), (np.repeat(np.arange(n), dim),
+                                           np.arange(dim * n))), shape=(n, dim * n))
     return (P @ G).tocsr()
 
 
@@ -46,7 +46,7 @@ class _PointCoupling:
     """The fixed sparsity of the rigid-contact tangent between slave points.
 
     Contact nodes couple the slave points they share (``M = Nᵀ w``): the
-    tangent is ``Gᵀ X G`` with ``X`` a (2 × 2)-block matrix on the pattern
+    tangent is ``Gᵀ X G`` with ``X`` a (d × d)-block matrix on the pattern
     of ``Mᵀ M`` plus the diagonal.  The scalar matrices ``Mᵀ diag(v) M``
     are linear in the nodal values ``v``: their entries are summed from the
     products ``M_Kp M_Kq`` listed here once, so that each evaluation builds
@@ -86,9 +86,10 @@ class _PointCoupling:
                            minlength=len(self.cols))
 
     def tangent(self, blocks):
-        """``Gᵀ X G`` for the 2 × 2 blocks of ``X`` on the pattern."""
+        """``Gᵀ X G`` for the d × d blocks of ``X`` on the pattern."""
+        dim = blocks.shape[-1]
         X = sp.bsr_matrix((blocks, self.indices, self.indptr),
-                          shape=(2 * self.n, 2 * self.n)).tocsr()
+                          shape=(dim * self.n, dim * self.n)).tocsr()
         return self.GT @ (X @ self.G)
 
 
@@ -217,7 +218,7 @@ def _check_finite_traction(traction, X, name):
         bad = np.flatnonzero(~finite)
         raise NonFiniteError(
             f"the contact traction of tool {name!r} is not finite at {bad.size} slave "
-            f"points; first at X = ({X[0, bad[0]]:.4g}, {X[1, bad[0]]:.4g})", bad)
+            f"points; first at X = ({', '.join(f'{c:.4g}' for c in X[:, bad[0]])})", bad)
 
 
 class RigidContact:

@@ -57,16 +57,17 @@ class SlavePoints:
 
     Attributes
     ----------
-    X : ndarray (2, n)
+    X : ndarray (dim, n)
         Reference positions of the points.
     weights : ndarray (n,)
         Boundary area of each point (``2πR`` included for axisymmetric
         models).
-    G : sparse (2n, N)
-        Displacements of the points, interleaved ``(u_x, u_y)`` per point,
-        are ``G @ d``.
+    G : sparse (dim·n, N)
+        Displacements of the points, interleaved ``(u_x, u_y[, u_z])`` per
+        point, are ``G @ d``.
     spacing : float
-        Mean length ``h_c`` of the slave boundary facets.
+        Mean length ``h_c`` of the slave boundary facets (in 3D the square
+        root of their mean area).
     hats : sparse (n, m)
         Values ``N_K(x_q)`` of the boundary hat function of contact node
         ``K`` at the points (the identity for nodal collocation).
@@ -89,6 +90,10 @@ class SlavePoints:
         return self.X.shape[1]
 
     @property
+    def dim(self):
+        return self.X.shape[0]
+
+    @property
     def m(self):
         return self.node_weights.shape[0]
 
@@ -98,8 +103,8 @@ class SlavePoints:
         return (self.hats.T @ sp.diags(self.weights)).tocsr()
 
     def displacements(self, d):
-        """Displacements (2, n) of the points for coefficients ``d``."""
-        return (self.G @ d).reshape(-1, 2).T
+        """Displacements (dim, n) of the points for coefficients ``d``."""
+        return (self.G @ d).reshape(-1, self.dim).T
 
     def average(self, values):
         """Hat-weighted nodal averages ``Σ_q N_K(x_q) w_q v_q / W_K``."""
@@ -130,7 +135,13 @@ def _facets(mesh, boundaries):
 
 
 def _facet_spacing(mesh, facets):
-    """Mean reference length of the facets: the spacing ``h_c``."""
+    """The spacing ``h_c``: the mean reference length of the facets, in 3D
+    the square root of their mean area."""
+    if mesh.dim() == 3:
+        from skfem import FacetBasis
+
+        fb = FacetBasis(mesh, type(mesh).elem(), facets=facets, intorder=1)
+        return float(np.sqrt(np.asarray(fb.dx).sum() / len(facets)))
     e = mesh.p[:, mesh.facets[1, facets]] - mesh.p[:, mesh.facets[0, facets]]
     return float(np.mean(np.linalg.norm(e, axis=0)))
 
@@ -147,12 +158,12 @@ def _scalar_value_matrix(fb):
 
 
 def _boundary_quadrature(mesh, facets, intorder, axisymmetric):
-    """Gauss points (2, nq) and weights (with ``2πR``) on the facets, and the
-    facet hat functions there (sparse nq × nvertices)."""
+    """Gauss points (dim, nq) and weights (with ``2πR``) on the facets, and
+    the facet hat functions there (sparse nq × nvertices)."""
     from skfem import FacetBasis
 
     fb = FacetBasis(mesh, type(mesh).elem(), facets=facets, intorder=intorder)
-    x = np.asarray(fb.global_coordinates()).reshape(2, -1)
+    x = np.asarray(fb.global_coordinates()).reshape(mesh.dim(), -1)
     w = np.asarray(fb.dx).ravel()
     if axisymmetric:
         w = _TWO_PI * x[0] * w
@@ -163,12 +174,14 @@ def _is_rk(basis):
     return hasattr(basis, "element_nodes") and hasattr(basis, "nodal_matrix")
 
 
-def _check_2d(basis, model):
-    if basis.mesh.dim() != 2 or model == "3d":
-        raise ValueError("contact is implemented for 2D models (plane strain, "
-                         "axisymmetric) only")
-    if model not in ("plane_strain", "axisymmetric"):
-        raise ValueError(f"model must be 'plane_strain' or 'axisymmetric', not {model!r}")
+def _check_model(basis, model):
+    if model not in ("plane_strain", "axisymmetric", "3d"):
+        raise ValueError(f"model must be 'plane_strain', 'axisymmetric' or '3d', "
+                         f"not {model!r}")
+    dim = basis.mesh.dim()
+    if (dim == 3) != (model == "3d"):
+        raise ValueError(f"a {dim}D mesh with model {model!r}: 3D meshes need "
+                         f"model='3d', 2D meshes 'plane_strain' or 'axisymmetric'")
 
 
 def _vertex_dof_check(basis):
@@ -178,14 +191,14 @@ def _vertex_dof_check(basis):
                                               and np.allclose(basis.nodes, mesh.p)):
             raise ValueError("nodal collocation needs the particles at the mesh "
                              "vertices; use collocation='quadrature'")
-    elif basis.N != 2 * mesh.nvertices:
+    elif basis.N != mesh.dim() * mesh.nvertices:
         raise ValueError("nodal collocation needs one dof per vertex and component "
                          "(linear elements); use collocation='quadrature'")
 
 
-def _interleaved(nodes):
-    """Vector dofs ``2K, 2K + 1`` of nodes ``K``, point-major."""
-    return (2 * np.asarray(nodes)[:, None] + np.arange(2)[None]).ravel()
+def _interleaved(nodes, dim=2):
+    """Vector dofs ``dim·K + c`` of nodes ``K``, point-major."""
+    return (dim * np.asarray(nodes)[:, None] + np.arange(dim)[None]).ravel()
 
 
 def _element_nodal_points(basis, facets, axisymmetric):
@@ -198,7 +211,8 @@ def _element_nodal_points(basis, facets, axisymmetric):
     mesh = basis.mesh
     scalar = basis.elem.elem if hasattr(basis.elem, "elem") else basis.elem
     fb = FacetBasis(mesh, scalar, facets=facets, intorder=2 * scalar.maxdeg + 1)
-    x = np.asarray(fb.global_coordinates()).reshape(2, -1)
+    dim = mesh.dim()
+    x = np.asarray(fb.global_coordinates()).reshape(dim, -1)
     w = np.asarray(fb.dx).ravel()
     if axisymmetric:
         w = _TWO_PI * x[0] * w
@@ -215,8 +229,8 @@ def _element_nodal_points(basis, facets, axisymmetric):
     keep = weights > 1e-12 * weights.max()
     nodes, weights = nodes[keep], weights[keep]
     per_facet = len(nodes) / max(len(facets), 1)  # ~ nodes per facet beyond the first
-    G = sp.identity(basis.N, format="csr")[_interleaved(nodes)]
-    return SlavePoints(basis.doflocs[:, 2 * nodes], weights, G,
+    G = sp.identity(basis.N, format="csr")[_interleaved(nodes, dim)]
+    return SlavePoints(basis.doflocs[:, dim * nodes], weights, G,
                        _facet_spacing(mesh, facets) / max(per_facet, 1.0),
                        sp.identity(len(nodes), format="csr"), weights, nodes)
 
@@ -225,13 +239,13 @@ def _nodal_points(basis, facets, axisymmetric):
     """Boundary particles with hat-function weights ``w_K = ∫_Γ N_K dΓ`` and
     ``G`` = the rows of ``Λᵀ`` (Eq. 3.33) of their nodal values."""
     mesh = basis.mesh
-    if not _is_rk(basis) and basis.N != 2 * mesh.nvertices:
+    if not _is_rk(basis) and basis.N != mesh.dim() * mesh.nvertices:
         return _element_nodal_points(basis, facets, axisymmetric)
     _vertex_dof_check(basis)
     _, w, hats = _boundary_quadrature(mesh, facets, 2, axisymmetric)
     nodes = np.unique(mesh.facets[:, facets])
     weights = np.asarray(hats.T @ w).ravel()[nodes]
-    G = transformation(basis)[_interleaved(nodes)]
+    G = transformation(basis)[_interleaved(nodes, mesh.dim())]
     return SlavePoints(mesh.p[:, nodes], weights, sp.csr_matrix(G),
                        _facet_spacing(mesh, facets), sp.identity(len(nodes), format="csr"),
                        weights, nodes)
@@ -254,11 +268,12 @@ def _quadrature_points(basis, facets, axisymmetric, intorder, pointwise=False):
         scalar = basis.elem.elem if hasattr(basis.elem, "elem") else basis.elem
         S = _scalar_value_matrix(FacetBasis(mesh, scalar, facets=facets,
                                             intorder=intorder))
-    G = sp.kron(S, sp.identity(2), format="csr")
+    G = sp.kron(S, sp.identity(mesh.dim()), format="csr")
     spacing = _facet_spacing(mesh, facets)
     if pointwise:
         return SlavePoints(x, w, G, spacing, sp.identity(len(w), format="csr"), w)
-    hats, nodes = _split_at_corners(mesh, facets, hats)
+    split = _split_by_normals if mesh.dim() == 3 else _split_at_corners
+    hats, nodes = split(mesh, facets, hats)
     return SlavePoints(x, w, G, spacing, hats, np.asarray(hats.T @ w).ravel(), nodes)
 
 
@@ -304,6 +319,68 @@ def _split_at_corners(mesh, facets, hats):
     return out, np.concatenate([nodes, corners])
 
 
+def _facet_groups(vertex, normal, cos_corner, rounds=8):
+    """Group the (vertex, facet) incidences of every vertex by facet normal:
+    in each round the first ungrouped incidence of a vertex opens a group,
+    which every ungrouped incidence of that vertex within the corner angle
+    joins.  ``vertex`` (k,) sorted, ``normal`` (k, 3); returns the group
+    number (k,) of every incidence."""
+    group = np.full(len(vertex), -1)
+    for g in range(rounds):
+        idx = np.flatnonzero(group < 0)
+        if len(idx) == 0:
+            return group
+        v = vertex[idx]
+        leads = idx[np.r_[True, v[1:] != v[:-1]]]
+        lead_of = leads[np.searchsorted(vertex[leads], v)]
+        close = np.einsum("kd,kd->k", normal[idx], normal[lead_of]) >= cos_corner
+        group[idx[close]] = g
+    if (group < 0).any():
+        k = int(vertex[np.flatnonzero(group < 0)[0]])
+        raise ValueError(f"slave vertex {k} joins more than {rounds} faces of distinct "
+                         "normals; use collocation='nodal'")
+    return group
+
+
+def _split_by_normals(mesh, facets, hats):
+    """3D contact nodes: one per slave vertex and face of the slave surface
+    meeting there (facets whose normals differ by more than
+    :data:`CORNER_ANGLE` degrees make distinct faces: the edges and corners
+    of a box), each with the part of its hat function on that face, so
+    that a weighted gap never mixes two faces.
+
+    Returns the hat values at the Gauss points (sparse nq × m; the rows of
+    ``hats`` are facet-major) and the vertex of every contact node."""
+    from skfem import FacetBasis
+
+    fb = FacetBasis(mesh, type(mesh).elem(), facets=facets, intorder=1)
+    normal = np.asarray(fb.normals)[:, :, 0].T  # (nf, 3), one per (flat) facet
+    fv = mesh.facets[:, facets]
+    vertex = fv.T.ravel()
+    facet = np.repeat(np.arange(len(facets)), fv.shape[0])
+    order = np.argsort(vertex, kind="stable")
+    vertex, facet = vertex[order], facet[order]
+    group = _facet_groups(vertex, normal[facet], np.cos(np.radians(CORNER_ANGLE)))
+    nodes = np.unique(vertex)
+    extra = group > 0
+    keys = np.unique(vertex[extra].astype(np.int64) * 8 + group[extra])
+    column_of = np.full(len(vertex), -1)
+    column_of[~extra] = np.searchsorted(nodes, vertex[~extra])
+    column_of[extra] = len(nodes) + np.searchsorted(
+        keys, vertex[extra].astype(np.int64) * 8 + group[extra])
+    coo = sp.coo_matrix(hats)
+    keep = np.isin(coo.col, nodes) & (coo.data != 0)
+    row, col, data = coo.row[keep], coo.col[keep], coo.data[keep]
+    row_facet = row // (hats.shape[0] // len(facets))
+    # the incidence (vertex col, facet row_facet) in the sorted list
+    incidence = np.lexsort((facet, vertex))
+    pairs = vertex[incidence].astype(np.int64) * len(facets) + facet[incidence]
+    at = incidence[np.searchsorted(pairs, col.astype(np.int64) * len(facets) + row_facet)]
+    out = sp.csr_matrix((data, (row, column_of[at])),
+                        shape=(hats.shape[0], len(nodes) + len(keys)))
+    return out, np.concatenate([nodes, keys // 8])
+
+
 def slave_points(basis, boundaries=None, collocation="nodal", model="plane_strain",
                  intorder=None):
     """The slave points of the named boundaries of a basis.
@@ -331,7 +408,7 @@ def slave_points(basis, boundaries=None, collocation="nodal", model="plane_strai
     -------
     SlavePoints
     """
-    _check_2d(basis, model)
+    _check_model(basis, model)
     facets = _facets(basis.mesh, boundaries)
     if len(facets) == 0:
         raise ValueError("the slave boundary has no facets")

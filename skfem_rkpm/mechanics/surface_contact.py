@@ -1,0 +1,247 @@
+"""Frictional contact of a 3D body with a moving rigid tool surface: the
+penalty (Eq. 4.5-4.6) or augmented Lagrangian Coulomb law of
+:mod:`.friction` with the slip direction a vector of the tangent plane,
+its force and consistent tangent (the 3D form of Eq. 4.27-4.29), at the
+slave points of :mod:`.slave_points` against a tool of :mod:`.surfaces`.
+
+The contact node ``K`` sees the gap and slip of its slave points
+(the particle itself for nodal collocation, hat-weighted averages of the
+boundary Gauss points otherwise):
+
+    ĝ_K = W_K⁻¹ Σ_q M_Kq g_q,           ŝ_K = W_K⁻¹ Σ_q M_Kq P_q Δξ_q,
+
+with ``P = I - n nᵀ`` the projection on the tangent plane of the master
+surface and ``Δξ`` the slip of the point relative to the tool since the
+last converged step (Eq. 4.11; the change of its position in the tool's
+frame, so that rotating rolls are handled like translating platens).
+Its tractions are ``t_n = ⟨λ_n - ω_n ĝ⟩`` and the return map of the
+trial ``T* = λ_t - ω_t φ ŝ`` (``φ`` the part of the step spent in
+contact); the points carry ``t_q = Σ_K N_qK (t_n,K n_q + T_K)``.
+"""
+
+import numpy as np
+
+from .friction import (DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR,
+                       DEFAULT_TANGENTIAL_FACTOR, ContactState, _positive,
+                       coulomb_vector, default_penalty, friction_coefficient)
+from .rigid_contact import (RigidContact, ToolSideError, _check_finite_traction,
+                            _PointCoupling, _touch_fraction, _warn_if_out_of_reach)
+from .slave_points import slave_points
+
+__all__ = ["SurfaceContact"]
+
+
+def _outer(a, b):
+    return np.einsum("ni,nj->nij", a, b)
+
+
+def _slip_derivative(normal, curvature, slipped):
+    """``D = ∂(P Δξ)/∂x = P - (n·Δξ) C - n (C Δξ)ᵀ`` per point, with
+    ``∂Δξ/∂x = I`` and ``∂n/∂x = C`` (the curvature of the master surface)."""
+    n, dim = normal.shape
+    P = np.eye(dim)[None] - _outer(normal, normal)
+    along = np.einsum("ni,ni->n", normal, slipped)
+    return (P - along[:, None, None] * curvature
+            - _outer(normal, np.einsum("nij,nj->ni", curvature, slipped)))
+
+
+def _stick_slip_operator(trial, shear, pressure, slip, active, mu):
+    """``S = ∂T/∂T*`` per node: ``I`` in stick, ``μ t_n / |T*| (I - τ τᵀ)``
+    in slip (``τ = T*/|T*|``), 0 apart or without friction."""
+    m, dim = trial.shape
+    S = np.zeros((m, dim, dim))
+    if mu == 0.0:
+        return S, np.zeros((m, dim))
+    stick = active & ~slip
+    S[stick] = np.eye(dim)
+    size = np.linalg.norm(trial, axis=1)
+    tau = np.where(slip[:, None], trial / np.where(slip, size, 1.0)[:, None], 0.0)
+    if np.isfinite(mu):
+        S[slip] = ((mu * pressure[slip] / size[slip])[:, None, None]
+                   * (np.eye(dim)[None] - _outer(tau[slip], tau[slip])))
+    return S, tau
+
+
+def _surface_tangent(coupling, proj, pts, law, slipped, omega_n, omega_t, mu):
+    """Consistent tangent ``K = Gᵀ X G`` of the contact force
+    ``f = -Gᵀ (w t)`` (the 3D form of Eq. 4.28-4.29), with the blocks
+
+        X_pq = Σ_K M_Kp M_Kq [α_K n_p n_qᵀ + A_K D_q + b_K n_qᵀ]
+               - δ_pq w_p t̄_n,p C_p
+
+    between slave points ``p, q`` (``M = Nᵀ diag(w)``): ``α_K = ω_n/W_K``
+    on pressed nodes (Eq. 4.5), ``A_K = ω_t φ_K S_K / W_K`` and
+    ``b_K = (ω_t φ'_K S_K ŝ_K + μ ω_n τ_K [slip]) / W_K`` from the return
+    map (Eq. 4.6, ``S = ∂T/∂T*``), ``D_q`` the derivative of the projected
+    slip (:func:`_slip_derivative`) and ``C_p = ∂n/∂x`` at the point.
+    """
+    pressure, shear, slip, active, trial, mean_slip, phi, dphi = law
+    normal = proj.normal.T
+    dim = normal.shape[1]
+    inv_W = 1.0 / pts.node_weights
+    p, q = coupling.rows, coupling.cols
+    blocks = ((omega_n * coupling.scalar(active * inv_W))[:, None, None]
+              * _outer(normal[p], normal[q]))
+    if mu > 0:
+        S, tau = _stick_slip_operator(trial, shear, pressure, slip, active, mu)
+        A = (omega_t * phi * inv_W)[:, None, None] * S
+        b = (omega_t * dphi * inv_W)[:, None] * np.einsum("kij,kj->ki", S, mean_slip)
+        if np.isfinite(mu):
+            b += (mu * omega_n * (slip & active) * inv_W)[:, None] * tau
+        A_pq = np.stack([coupling.scalar(A[:, i, j]) for i in range(dim)
+                         for j in range(dim)], axis=-1).reshape(-1, dim, dim)
+        b_pq = np.stack([coupling.scalar(b[:, i]) for i in range(dim)], axis=-1)
+        D = _slip_derivative(normal, proj.curvature, slipped)
+        blocks += np.einsum("kij,kjl->kil", A_pq, D[q]) + _outer(b_pq, normal[q])
+    blocks[coupling.diagonal] -= ((pts.weights * (pts.hats @ pressure))[:, None, None]
+                                  * proj.curvature)
+    return coupling.tangent(blocks)
+
+
+def _check_initial_side_3d(tool, X, spacing):
+    """:class:`ToolSideError` if every slave point starts behind the tool
+    surface, somewhere deeper than the particle ``spacing``."""
+    gap = tool.project(X, 0.0).gap
+    if gap.max() > 1e-9 * spacing or gap.min() >= -spacing:
+        return
+    raise ToolSideError("orientation", "faces away from the part (the normal of a "
+                        "plane, the side of a cylinder, sphere or torus, or the "
+                        "winding of a triangulated surface must put the part on the "
+                        "positive side); flip it",
+                        f"at t = 0 all {gap.size} slave points are behind its surface, "
+                        f"up to {-gap.min():.4g} deep, {-gap.min() / spacing:.3g} "
+                        "particle spacings", tool.name)
+
+
+class SurfaceContact(RigidContact):
+    """Penalty or augmented-Lagrangian frictional contact of a 3D body with
+    a rigid tool surface (Sec. 4.3, Eq. 4.25-4.29 with vector slip), a
+    contribution for :func:`skfem_rkpm.solvers.newton.newton_steps`.
+
+    The same parameters and methods as :class:`RigidContact`, with
+    ``tool`` a surface of :mod:`skfem_rkpm.mechanics.surfaces` (anything
+    with ``project(x, t)`` returning point, normal, gap and the curvature
+    tensor ``∂n/∂x``, ``to_body(x, t)`` and ``placement(t)``) and
+    ``problem.model == "3d"``.  Tangential tractions are vectors (``shear``
+    of the state has shape ``(m, 3)``).
+    """
+
+    def __init__(self, problem, tool, slaves=None, friction=0.0, collocation="nodal",
+                 penalty=None, tangential_penalty=None, factor=DEFAULT_PENALTY_FACTOR,
+                 tangential_factor=DEFAULT_TANGENTIAL_FACTOR, intorder=None,
+                 enforcement="penalty", tolerance=DEFAULT_AUGMENTED_TOLERANCE):
+        if not all(hasattr(tool, a) for a in ("project", "to_body", "placement")):
+            raise TypeError("tool must be a 3D surface (Plane, Cylinder, Sphere, Torus, "
+                            f"TriangulatedSurface), not {tool!r}")
+        if enforcement not in ("penalty", "augmented"):
+            raise ValueError(f"enforcement must be 'penalty' or 'augmented', not "
+                             f"{enforcement!r}")
+        if problem.model != "3d":
+            raise ValueError(f"SurfaceContact needs a 3D model, not {problem.model!r}; "
+                             "use RigidContact with a 2D tool")
+        self.problem, self.tool, self.name = problem, tool, tool.name
+        self.enforcement = enforcement
+        self.mu = friction_coefficient(friction, exact_stick=enforcement == "augmented")
+        self.collocation = collocation
+        self.points = slave_points(problem.basis, slaves, collocation, problem.model,
+                                   intorder)
+        spacing = self.points.spacing
+        self.omega_n = (default_penalty(problem.material.E, spacing, factor)
+                        if penalty is None else _positive(penalty, "penalty"))
+        self.omega_t = (default_penalty(problem.material.E, spacing, tangential_factor)
+                        if tangential_penalty is None
+                        else _positive(tangential_penalty, "tangential penalty"))
+        self.tolerance = _positive(tolerance, "augmented Lagrangian tolerance")
+        self._coupling = _PointCoupling(self.points)
+        self.state = self.trial = self._initial_state()
+        self.restart()
+        _check_initial_side_3d(tool, self.points.X, spacing)
+        _warn_if_out_of_reach(tool, self.points.X, spacing)
+
+    def _initial_state(self):
+        X, m, dim = self.points.X, self.points.m, self.points.dim
+        proj = self.tool.project(X, 0.0)
+        return ContactState(X.copy(), proj.gap, proj.normal, np.zeros_like(X),
+                            self.tool.to_body(X, 0.0), self.points.average(proj.gap),
+                            np.zeros(m), np.zeros((m, dim)), np.zeros(m, bool),
+                            np.zeros(m, bool), np.zeros(dim))
+
+    def _slip(self, relative, t):
+        """Slip ``Δξ`` (n, d) of the points relative to the tool since the
+        last converged step, in the world frame at load factor ``t``."""
+        R, _ = self.tool.placement(t)
+        return (R @ (relative - self.state.relative)).T
+
+    def _mean_slip(self, normal, slipped):
+        """``ŝ_K``: hat-weighted averages of the tangential slip ``P Δξ``."""
+        along = np.einsum("ni,ni->n", normal, slipped)
+        tangential = slipped - along[:, None] * normal
+        return np.stack([self.points.average(c) for c in tangential.T], axis=1)
+
+    def _law(self, proj, slipped):
+        """Nodal tractions: ``t_n = ⟨λ_n - ω_n ĝ⟩`` (Eq. 4.5) and the return
+        map (Eq. 4.6) of ``T* = λ_t - ω_t φ ŝ`` (Eq. 4.11 for the slip)."""
+        pts, state = self.points, self.state
+        node_gap = pts.average(proj.gap)
+        pressed = node_gap - self.multipliers[0] / self.omega_n
+        active = pressed <= 0.0
+        pressure = self.omega_n * np.maximum(-pressed, 0.0)
+        mean_slip = self._mean_slip(proj.normal.T, slipped)
+        phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
+        trial = self.multipliers[1] - (self.omega_t * phi)[:, None] * mean_slip
+        shear, slip = coulomb_vector(pressure, trial, self.mu)
+        law = (pressure, np.where(active[:, None], shear, 0.0), slip & active, active,
+               trial, mean_slip, phi, dphi)
+        return node_gap, law
+
+    def evaluate(self, d, t):
+        """Contact force (added to the internal force) and its tangent at
+        coefficients ``d`` and load factor ``t``."""
+        pts = self.points
+        x = pts.X + pts.displacements(d)
+        proj = self.tool.project(x, t)
+        relative = self.tool.to_body(x, t)
+        slipped = self._slip(relative, t)
+        node_gap, law = self._law(proj, slipped)
+        pressure, shear = law[0], law[1]
+        tangential = (pts.hats @ shear).T
+        traction = (pts.hats @ pressure) * proj.normal + tangential
+        _check_finite_traction(traction, pts.X, self.name)
+        f = self._coupling.GT @ (-(pts.weights * traction)).T.ravel()
+        K = _surface_tangent(self._coupling, proj, pts, law, slipped, self.omega_n,
+                             self.omega_t, self.mu)
+        self._normals = proj.normal
+        self._sticking_slip = law[6][:, None] * law[5]  # φ ŝ: what stick must keep at 0
+        size = np.linalg.norm(tangential, axis=0)
+        direction = tangential / np.where(size > 0, size, 1.0)
+        self.trial = ContactState(x, proj.gap, proj.normal, direction, relative, node_gap,
+                                  pressure, shear, law[2], law[3],
+                                  (pts.weights * traction).sum(axis=1))
+        return f, K
+
+    def violation(self):
+        """Largest penetration of a pressed node, and slip of a sticking node
+        since the last converged step (or since it touched), at the last
+        evaluation, over ``tolerance · h_c`` (converged when ≤ 1)."""
+        trial = self.trial
+        penetration = np.maximum(-trial.node_gap, 0.0)[trial.active].max(initial=0.0)
+        slip = 0.0
+        if self.mu > 0:
+            sticking = trial.active & ~trial.slip
+            slip = np.linalg.norm(self._sticking_slip, axis=1)[sticking].max(initial=0.0)
+        return max(penetration, slip) / (self.tolerance * self.points.spacing)
+
+    def gauges(self, t):
+        """Tool position and penetration, for output tables."""
+        dx = self.tool.translation(t)
+        out = {f"{self.name} d{c}": float(v) for c, v in zip("xyz", dx)}
+        out[f"{self.name} penetration"] = self.penetration()
+        return out
+
+    def set_state(self, state):
+        """Restore a state returned by :meth:`get_state`."""
+        if state.gap.shape != (self.points.n,) or state.shear.shape != (
+                self.points.m, self.points.dim):
+            raise ValueError("the state belongs to a contact with different slave points")
+        self.state = self.trial = state
+        self.restart()

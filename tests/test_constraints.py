@@ -71,3 +71,41 @@ def test_wrong_number_of_values(model):
     b, K, f = model
     with pytest.raises(ValueError, match="one value per constrained dof"):
         solve(K, f, b, D=b.get_dofs("left"), x=np.zeros(3))
+
+
+@pytest.mark.parametrize("kind, method", [("fem", "nodal"), ("fem", "weak"), ("rk", "weak")])
+def test_skew_conditions_compress_a_rotated_block_homogeneously(kind, method):
+    """A unit block turned by 30°, held by ``n·u = 0`` on two faces whose
+    normals ``n`` are not axis-aligned and pressed by ``n·u = -δ`` on a
+    third: the plane-strain compression of the unturned block, turned
+    (Hencky elastic closed form); its stress in the turned frame is uniaxial
+    to round-off (1e-9 of the axial stress).  Nodal conditions on an RK
+    basis cannot carry the uniform reaction traction exactly (their
+    reactions are Σ_K Ψ_I(X_K) λ_K), as for axis-aligned components."""
+    from skfem_rkpm.mechanics.materials import J2Material
+    from skfem_rkpm.mechanics.problem import SolidProblem
+    from skfem_rkpm.meshes import rectangle
+    from skfem_rkpm.solvers.newton import Prescribed, newton_steps
+
+    E, nu, delta = 200e3, 0.3, 0.02
+    a = np.radians(30.0)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    mesh = rectangle(1.0, 1.0, 4, 4)
+    mesh = type(mesh)(R @ mesh.p, mesh.t, _boundaries=mesh.boundaries)
+    basis = (RKBasis(mesh, vector=True, support=2.0) if kind == "rk"
+             else Basis(mesh, ElementVector(ElementQuad1()), intorder=2))
+    problem = SolidProblem(basis, J2Material(E, nu, None), "plane_strain")
+    ex, ey = R[:, 0], R[:, 1]
+    conditions = [Prescribed("left", ex, method=method), Prescribed("bottom", ey, method=method),
+                  Prescribed("top", ey, -delta, method=method)]
+    result = newton_steps(problem, conditions, steps=2, tol=1e-12)
+    assert result.completed, result.message
+    lam, G = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    eyy = np.log(1.0 - delta)
+    exx = -lam * eyy / (lam + 2 * G)
+    sigma = (lam * (exx + eyy) + 2 * G * eyy) / np.exp(exx + eyy)
+    stress = problem.cauchy_stress(problem.evaluate(result.d, tangent=False))[:, :2, :2]
+    turned = np.einsum("ia,nij,jb->nab", R, stress, R)
+    np.testing.assert_allclose(turned[:, 1, 1], sigma, rtol=1e-9)
+    np.testing.assert_allclose(turned[:, 0, 0], 0.0, atol=1e-9 * abs(sigma))
+    np.testing.assert_allclose(turned[:, 0, 1], 0.0, atol=1e-9 * abs(sigma))

@@ -15,8 +15,8 @@ from skfem.element import ElementVector
 
 from .nodal_integration import boundary_rule
 
-__all__ = ["transformation", "Constraint", "ConstraintSet", "nodal_constraint",
-           "weak_constraint"]
+__all__ = ["transformation", "direction", "Constraint", "ConstraintSet",
+           "nodal_constraint", "weak_constraint"]
 
 
 def transformation(basis):
@@ -62,11 +62,30 @@ def _named_facets(mesh, facets):
     return np.asarray(facets)
 
 
+def direction(component, ncomp):
+    """The unit row ``n`` (ncomp,) of a constrained displacement ``n·u``:
+    ``component`` is a component number or a direction (a skew condition,
+    e.g. the normal of a symmetry plane not aligned with the axes)."""
+    if isinstance(component, (int, np.integer)):
+        if not 0 <= component < ncomp:
+            raise ValueError(f"component {component} does not exist: the basis has "
+                             f"{ncomp} component(s)")
+        return np.eye(ncomp)[component]
+    n = np.asarray(component, dtype=float)
+    if n.shape != (ncomp,) or not np.all(np.isfinite(n)) or not np.any(n):
+        raise ValueError(f"a constrained direction must be {ncomp} finite numbers, not all "
+                         f"zero, not {component!r}")
+    return n / np.linalg.norm(n)
+
+
 def nodal_constraint(basis, facets, component):
-    """Prescribe nodal values on the nodes of ``facets`` (Eq. 3.37)."""
+    """Prescribe nodal values on the nodes of ``facets`` (Eq. 3.37):
+    of one displacement component, or of ``n·u`` for a direction ``n``."""
     mesh = basis.mesh
     find = _named_facets(mesh, facets)
     ncomp = _ncomp(basis)
+    if not isinstance(component, (int, np.integer)):
+        return _skew_nodal_constraint(basis, find, direction(component, ncomp))
     if hasattr(basis, "element_nodes"):
         nodes = np.unique(mesh.facets[:, find])
         dofs = ncomp * nodes + component
@@ -77,6 +96,22 @@ def nodal_constraint(basis, facets, component):
         nodes, x = dofs // ncomp, basis.doflocs[:, dofs]
     return Constraint(transformation(basis)[dofs], sp.identity(len(dofs)),
                       nodes, x, component)
+
+
+def _skew_nodal_constraint(basis, facets, n):
+    """Nodal values of ``n·u`` on the nodes of ``facets``: the rows
+    ``Σ_c n_c Λᵀ[c]`` of the components (Eq. 3.37)."""
+    mesh, ncomp = basis.mesh, len(n)
+    if hasattr(basis, "element_nodes"):
+        nodes = np.unique(mesh.facets[:, facets])
+        dofs = [ncomp * nodes + c for c in range(ncomp)]
+        x = mesh.p[:, nodes]
+    else:
+        dofs = [np.sort(basis.get_dofs(facets).all(f"u^{c + 1}")) for c in range(ncomp)]
+        nodes, x = dofs[0] // ncomp, basis.doflocs[:, dofs[0]]
+    T = transformation(basis)
+    C = sum(n[c] * T[dofs[c]] for c in range(ncomp) if n[c] != 0.0)
+    return Constraint(C, sp.identity(len(nodes)), nodes, x, tuple(n))
 
 
 def _facet_values(fb):
@@ -93,7 +128,8 @@ def _facet_values(fb):
 
 
 def weak_constraint(basis, facets, component, intorder=None):
-    """Prescribe displacements weakly along ``facets`` (boundary multipliers).
+    """Prescribe displacements weakly along ``facets`` (boundary multipliers):
+    one component, or ``n·u`` for a direction ``n`` (``component``).
 
     The multiplier is piecewise linear on the boundary facets, one hat
     function ``N_K`` per boundary node, and the constraints read
@@ -127,7 +163,7 @@ def weak_constraint(basis, facets, component, intorder=None):
     B = (Nhat.T @ W @ trial).tocsr()[nodes]
     M = (Nhat.T @ W @ Nhat).tocsr()[nodes][:, nodes]
     ncomp = _ncomp(basis)
-    pick = sp.csr_matrix((np.ones(1), ([0], [component])), shape=(1, ncomp))
+    pick = sp.csr_matrix(direction(component, ncomp)[None])
     return Constraint(sp.kron(B, pick, format="csr"), M, nodes, mesh.p[:, nodes],
                       component)
 

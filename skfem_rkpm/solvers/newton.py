@@ -37,8 +37,10 @@ class Prescribed:
     ----------
     boundary : str
         Name in ``mesh.boundaries``.
-    component : int
-        Displacement component (0: x or r, 1: y or z, 2: z).
+    component : int or sequence of float
+        Displacement component (0: x or r, 1: y or z, 2: z), or a direction
+        ``n``: then ``n·u`` is prescribed (a symmetry plane with normal
+        ``n`` not aligned with the axes).
     values : float or callable
         Final value, reached linearly in the load factor ``t``; or
         ``values(t, x)`` giving the value at node coordinates ``x`` (dim, n).
@@ -60,7 +62,9 @@ class Prescribed:
 
     @property
     def name(self):
-        return f"{self.boundary}[{self.component}]"
+        if isinstance(self.component, (int, np.integer)):
+            return f"{self.boundary}[{self.component}]"
+        return f"{self.boundary}[n=({', '.join(f'{c:.6g}' for c in self.component)})]"
 
     def constraint(self, basis):
         if self.method == "nodal":

@@ -58,6 +58,7 @@ SUITE = {
                        "--figure", "{figures}/plastic_trade.png"], (3, 1)),
     "petsc_mpi": ([], ["--sizes", "50"], (10, 2)),
     "form_assembly": ([], ["--no-skfem", "--repeat", "3"], (1.5, 0.5)),
+    "surface_projection": ([], ["--points", "2e3", "--repeat", "3"], (1, 0.2)),
     "vci_symmetry": ([], ["--levels", "4", "8", "--supports", "2", "--repeat", "1"],
                      (6, 0.5)),
     "basis_build": ([], ["--sizes", "1e4", "17227", "--repeat", "1"], (3, 0.5)),

@@ -8,15 +8,23 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from skfem_rkpm.mechanics.surfaces import Cylinder, Plane, Sphere, Surface, Torus
+from skfem_rkpm.mechanics.surfaces import Cylinder, Plane, Sphere, Torus
 from skfem_rkpm.mechanics.triangulated import (TriangulatedSurface,
                                                closest_points_on_triangles)
 
 RNG = np.random.default_rng(20240518)
 
 
-def random_directions(n, rng=RNG):
-    v = rng.normal(size=(3, n))
+@pytest.fixture(autouse=True)
+def same_points_in_every_run():
+    """Every test draws its random points from the same seed, whichever
+    tests run before it."""
+    global RNG
+    RNG = np.random.default_rng(20240518)
+
+
+def random_directions(n):
+    v = RNG.normal(size=(3, n))
     return v / np.linalg.norm(v, axis=0)
 
 
@@ -80,11 +88,11 @@ def analytic_surfaces(**motion):
             Torus((0.1, 0.0, -0.2), (0.3, 1.0, 0.5), 1.5, 0.4, "inside", **motion)]
 
 
-def points_near(surface, n, spread, rng=RNG):
-    """Points within ``spread`` of random surface points (off axes and centres)."""
+def points_near(surface, n, spread):
+    """Points within ``spread`` (per coordinate) of random surface points."""
     p, t = surface.outline(resolution=24, extent=1.0)
-    pick = p[:, rng.integers(0, p.shape[1], n)]
-    return pick + spread * rng.uniform(-1, 1, (3, n))
+    pick = p[:, RNG.integers(0, p.shape[1], n)]
+    return pick + spread * RNG.uniform(-1, 1, (3, n))
 
 
 def on_surface_residual(surface, p):
@@ -202,8 +210,8 @@ def test_derivatives_of_a_moving_rotated_torus():
 
 
 def cube_points():
-    """Points in the face, edge and vertex regions of the unit cube, outside
-    and inside (0.05 < |g| < 0.4), with their region names."""
+    """Points (3, 7) in the regions of the unit cube: face, edge, vertex,
+    edge (outside); face, face (inside); vertex (outside); 0.05 < |g| < 0.6."""
     return np.array([[0.3, 0.4, 1.2], [1.3, 1.2, 0.45], [1.3, 1.2, 1.4], [-0.2, 0.37, -0.1],
                      [0.9, 0.95, 0.5], [0.2, 0.6, 0.1], [-0.1, -0.3, -0.2]]).T
 
@@ -469,8 +477,17 @@ def test_from_file_errors_name_the_file(tmp_path):
     pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]], dtype=float)
     meshio.write(flat, meshio.Mesh(pts, [("triangle", np.array([[0, 1, 2], [0, 1, 3]]))]),
                  file_format="gmsh")
-    with pytest.raises(ValueError, match=r"flat.msh.*1 degenerate.*first: 1"):
+    with pytest.raises(ValueError, match=r"flat.msh.*1 degenerate.*first: 1.*"
+                                         r"triangle 1: triangle cell 1\)"):
         TriangulatedSurface.from_file(flat)
+    points, triangles = cube_mesh(1)  # quads: (a, b, c), (a, c, d) per face
+    quads = np.concatenate([triangles[0::2], triangles[1::2, 2:]], axis=1)
+    quads[4] = quads[4, ::-1]
+    turned = tmp_path / "turned.msh"
+    meshio.write(turned, meshio.Mesh(points, [("quad", quads)]), file_format="gmsh22")
+    with pytest.raises(ValueError, match=r"turned.msh.*same direction.*triangles \[1, 9\]"
+                                         r".*triangle 1: quad cell 0, triangle 9: quad cell 4"):
+        TriangulatedSurface.from_file(turned)
 
 
 # --- input checks ---------------------------------------------------------------

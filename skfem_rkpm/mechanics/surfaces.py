@@ -16,7 +16,8 @@ import numpy as np
 
 from .tools import _floats, _number
 
-__all__ = ["SurfaceProjection", "Surface", "Plane", "Cylinder", "Sphere", "Torus"]
+__all__ = ["SurfaceProjection", "Surface", "Plane", "Cylinder", "Sphere", "Torus",
+           "axis_rotation"]
 
 _SIDES = {"outside": 1.0, "inside": -1.0}
 

@@ -26,6 +26,15 @@ _CORNERS = {"triangle": [[0, 1, 2]], "triangle6": [[0, 1, 2]], "triangle7": [[0,
 _PAIRS_PER_BATCH = 1 << 19  # bounds the memory of one search batch (~100 MB)
 
 
+class _TriangleError(ValueError):
+    """A refused triangulation; ``triangles`` are the numbers of the
+    triangles concerned, so that a file reader can name their cells."""
+
+    def __init__(self, message, triangles):
+        super().__init__(message)
+        self.triangles = [int(k) for k in np.atleast_1d(triangles)]
+
+
 def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
@@ -96,8 +105,8 @@ def _checked_input(points, triangles, where):
     out = (tri < 0) | (tri >= len(pts))
     if out.any():
         k = int(np.flatnonzero(out.any(axis=1))[0])
-        raise ValueError(f"{where}: triangle {k} refers to points {tri[k].tolist()}, "
-                         f"but the point numbers run from 0 to {len(pts) - 1}")
+        raise _TriangleError(f"{where}: triangle {k} refers to points {tri[k].tolist()}, "
+                             f"but the point numbers run from 0 to {len(pts) - 1}", k)
     return pts, tri.astype(np.int64)
 
 
@@ -109,9 +118,10 @@ def _check_degenerate(corners, where):
     bad = np.flatnonzero(~(twice_area > 1e-10 * longest))
     if bad.size:
         first = ", ".join(str(k) for k in bad[:10])
-        raise ValueError(f"{where}: {bad.size} degenerate triangle(s) (coinciding or "
-                         f"collinear corners), first: {first}; triangle {bad[0]} has the "
-                         f"corners {corners[bad[0]].tolist()}; remove them or remesh")
+        raise _TriangleError(f"{where}: {bad.size} degenerate triangle(s) (coinciding "
+                             f"or collinear corners), first: {first}; triangle {bad[0]} "
+                             f"has the corners {corners[bad[0]].tolist()}; remove them "
+                             "or remesh", bad[:1])
 
 
 def _edges(tri, points, where):
@@ -134,8 +144,8 @@ def _edges(tri, points, where):
             e = int(np.flatnonzero(bad)[0])
             owners = sorted({int(j % k) for j in np.flatnonzero(inverse == e)})
             ends = points[unique[e]].tolist()
-            raise ValueError(f"{where}: the edge from {ends[0]} to {ends[1]} {problem} "
-                             f"(triangles {owners}); {fix}")
+            raise _TriangleError(f"{where}: the edge from {ends[0]} to {ends[1]} "
+                                 f"{problem} (triangles {owners}); {fix}", owners)
     return unique, inverse.reshape(3, k).T
 
 
@@ -230,9 +240,15 @@ class TriangulatedSurface(Surface):
         except Exception as error:  # meshio raises many kinds for a bad file
             raise ValueError(f"cannot read the tool surface file {str(path)!r} "
                              f"with meshio: {error}") from None
-        blocks = [(cells.data[:, corners].reshape(-1, 3))
-                  for cells in mesh.cells if cells.type in _CORNERS
-                  for corners in [np.array(_CORNERS[cells.type])]]
+        blocks, origin, seen = [], [], {}
+        for cells in mesh.cells:
+            if cells.type in _CORNERS:
+                corners = np.array(_CORNERS[cells.type])
+                blocks.append(cells.data[:, corners].reshape(-1, 3))
+                first = seen.get(cells.type, 0)
+                seen[cells.type] = first + len(cells.data)
+                origin += [(cells.type, first + k // len(corners))
+                           for k in range(len(blocks[-1]))]
         if not blocks:
             found = sorted({cells.type for cells in mesh.cells}) or ["none"]
             raise ValueError(f"tool surface file {str(path)!r} holds no triangles or "
@@ -246,7 +262,12 @@ class TriangulatedSurface(Surface):
         try:
             return cls(points, np.concatenate(blocks), motion, rotation, name)
         except ValueError as error:
-            raise ValueError(f"tool surface file {str(path)!r}: {error}") from None
+            cell = ""
+            if isinstance(error, _TriangleError):
+                cells = ", ".join(f"triangle {k}: {origin[k][0]} cell {origin[k][1]}"
+                                  for k in error.triangles)
+                cell = f" (in the file, counted from 0 by cell type: {cells})"
+            raise ValueError(f"tool surface file {str(path)!r}: {error}{cell}") from None
 
     @property
     def nfeatures(self):
@@ -323,7 +344,6 @@ class TriangulatedSurface(Surface):
         at an edge or vertex the normal runs from ``x_C`` to ``x``, signed by
         the angle-weighted pseudo-normal (the 3D ``_vertex_frame`` of
         :mod:`.tools`)."""
-        n = len(x)
         pseudo = self._face_normal[tri].copy()
         on_edge, on_vertex = (region >= 1) & (region <= 3), region >= 4
         edge = self._side_edges[tri, np.clip(region - 1, 0, 2)]

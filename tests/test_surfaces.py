@@ -564,3 +564,56 @@ def test_repr_and_centre_points_are_finite():
         proj = surface.project(anchor[:, None])
         assert np.all(np.isfinite(proj.curvature)) and np.isfinite(proj.gap).all()
         np.testing.assert_allclose(np.linalg.norm(proj.normal), 1.0)
+
+
+# --- with the contact law -------------------------------------------------------
+
+@pytest.mark.parametrize("tool", ["roll", "box corner"])
+def test_the_contact_tangent_with_real_surfaces_is_the_derivative_of_the_force(tool):
+    """:class:`SurfaceContact` on an FEM Hex1 cube pressed by a turning,
+    moving roll, or into the corner of a triangulated box cavity, where the
+    pressed top nodes lie in face, concave edge and concave vertex regions
+    (whose curvature enters the tangent): the tangent equals central
+    differences of the force to 1e-7 of its largest entry (h = 1e-7 against
+    displacements of 1e-2: truncation ~h², rounding ~1e-16/h)."""
+    from skfem import Basis, ElementHex1, ElementVector, MeshHex
+
+    from skfem_rkpm.mechanics.materials import J2Material, linear
+    from skfem_rkpm.mechanics.problem import SolidProblem
+    from skfem_rkpm.mechanics.surface_contact import SurfaceContact
+
+    if tool == "roll":
+        surface = Cylinder((0.5, 0.5, 2.0), (1.0, 0.2, 0.0), 1.03, motion=(0.1, 0.05, -0.05),
+                           rotation=dict(axis=(1.0, 0.2, 0.0), point=(0.5, 0.5, 2.0),
+                                         angle=-20))
+    else:  # the cavity [-0.5, 0.99] x [-0.5, 0.98] x [-0.5, 0.985], body inside
+        points, triangles = cube_mesh(2)
+        surface = TriangulatedSurface(points * [1.49, 1.48, 1.485] - 0.5,
+                                      triangles[:, ::-1], motion=(0.01, 0.0, -0.01))
+    grid = np.linspace(0.0, 1.0, 3)
+    mesh = MeshHex.init_tensor(grid, grid, grid).with_boundaries(
+        {"top": lambda x: x[2] > 1.0 - 1e-9})
+    problem = SolidProblem(Basis(mesh, ElementVector(ElementHex1()), intorder=2),
+                           J2Material(200e3, 0.3, linear(300.0, 2000.0)), "3d")
+    contact = SurfaceContact(problem, surface, "top", 0.3, "nodal", penalty=1e5,
+                             tangential_penalty=2e4)
+    d0 = 0.01 * RNG.normal(size=problem.N)
+    contact.evaluate(d0, 0.5)
+    contact.commit()
+    d = d0 + 0.01 * RNG.normal(size=problem.N)
+    _, K = contact.evaluate(d, 0.6)
+    active = contact.trial.active
+    assert active.any()
+    if tool == "box corner":
+        x = (contact.points.X + contact.points.displacements(d))[:, active]
+        local = surface.to_body(x, 0.6).T
+        best = surface._closest_triangles(local)
+        a, b, c = surface.points[surface.triangles[best]].transpose(1, 0, 2)
+        regions = closest_points_on_triangles(local, a, b, c)[1]
+        assert {0} < set(regions.tolist()) and (regions >= 4).any()  # face, edge, vertex
+    h = 1e-7
+    fd = np.column_stack([(contact.evaluate(d + h * e, 0.6)[0]
+                           - contact.evaluate(d - h * e, 0.6)[0]) / (2 * h)
+                          for e in np.eye(len(d))])
+    K = K.toarray()
+    assert np.abs(K - fd).max() < 1e-7 * np.abs(K).max()

@@ -1,4 +1,5 @@
-"""Unstructured meshes from gmsh, with named boundaries.
+"""Unstructured meshes from gmsh, with named boundaries: 2D (triangles,
+quadrilaterals) and 3D (tetrahedra, hexahedra).
 
 Meshes are generated with the official gmsh Python API or read from ``.msh``
 and (checked) ``.geo`` files.  When gmsh is not yet initialized, the
@@ -13,6 +14,8 @@ from pathlib import Path
 
 import gmsh
 import numpy as np
+import skfem
+from skfem.io.meshio import INV_HEX_MAPPING
 
 from ._mesh_cells import _check_kind, _make_mesh, _positive
 from .geo_check import check_geo
@@ -20,7 +23,12 @@ from .geo_check import check_geo
 __all__ = ["gmsh_rectangle", "gmsh_plate_with_hole", "from_gmsh", "load"]
 
 # gmsh element type numbers of first-order cells and lines
-_GMSH_TRI, _GMSH_QUAD, _GMSH_LINE = 2, 3, 1
+_GMSH_LINE, _GMSH_TRI, _GMSH_QUAD, _GMSH_TET, _GMSH_HEX = 1, 2, 3, 4, 5
+#: the kind of mesh of each (dimension, gmsh cell type)
+_CELL_KINDS = {(2, _GMSH_TRI): "tri", (2, _GMSH_QUAD): "quad", (3, _GMSH_TET): "tet",
+               (3, _GMSH_HEX): "hex"}
+#: gmsh type of the facets of each kind of cell
+_FACET_TYPES = {"tri": _GMSH_LINE, "quad": _GMSH_LINE, "tet": _GMSH_TRI, "hex": _GMSH_QUAD}
 
 
 # gmsh options changed by this module; restored when gmsh was already running
@@ -235,40 +243,91 @@ def _lookup(keys, table):
     return np.where(found, order[pos], -1)
 
 
+def _match_facets(facets, wanted):
+    """Index in ``facets`` (vertices, nfacets) of every column of ``wanted``
+    (the same vertices in any order); -1 where it is not a facet."""
+    n = facets.shape[1]
+    both = np.sort(np.concatenate([facets, wanted], axis=1), axis=0)
+    _, inverse = np.unique(both, axis=1, return_inverse=True)
+    inverse = inverse.ravel()
+    position = np.full(inverse.max() + 1, -1)
+    position[inverse[:n]] = np.arange(n)
+    return position[inverse[n:]]
+
+
+def _cell_name(gmsh_type):
+    return gmsh.model.mesh.getElementProperties(gmsh_type)[0]
+
+
+def _volume_mesh(xyz, t, kind):
+    """A scikit-fem tetrahedral or hexahedral mesh of gmsh's cells (gmsh
+    numbers the vertices of a hexahedron as VTK does)."""
+    p = np.ascontiguousarray(xyz, dtype=np.float64)
+    if kind == "hex":
+        return skfem.MeshHex1(p, np.ascontiguousarray(t[INV_HEX_MAPPING[:8]]))
+    return skfem.MeshTet1(p, np.ascontiguousarray(t))
+
+
+def _named_facets(mesh, used, dim, tag, name, facet_type):
+    """The mesh facets of the elements of a (dim - 1)-dimensional physical group."""
+    mesh_api = gmsh.model.mesh
+    corners = {_GMSH_LINE: 2, _GMSH_TRI: 3, _GMSH_QUAD: 4}[facet_type]
+    groups = [np.empty((0, corners), dtype=np.int64)]
+    for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+        for element_type, nodes in zip(*mesh_api.getElements(dim, entity)[::2]):
+            if element_type != facet_type:
+                raise ValueError(
+                    f"boundary {name!r} has {_cell_name(element_type)!r} elements; the "
+                    f"faces of the cells are {_cell_name(facet_type)!r} elements")
+            groups.append(np.asarray(nodes, dtype=np.int64).reshape(-1, corners))
+    local = _lookup(np.concatenate(groups).ravel(), used).reshape(-1, corners).T
+    index = _match_facets(mesh.facets.astype(np.int64), local) if local.size else local[0]
+    if np.any(local < 0) or np.any(index < 0):
+        what = "lines" if dim == 1 else "faces"
+        raise ValueError(f"boundary {name!r} has {what} that are not mesh facets")
+    return np.unique(index)
+
+
 def from_gmsh():
     """Convert the current gmsh model to a scikit-fem mesh.
 
-    The model must have been meshed in 2D (``gmsh.model.mesh.generate(2)``
-    or ``gmsh.open``) with first-order triangles or quadrilaterals, not both.
-    Nodes are renumbered from 0 and nodes not used by a 2D cell are dropped.
+    The model must have been meshed (``gmsh.model.mesh.generate`` or
+    ``gmsh.open``) with first-order cells of one kind: triangles or
+    quadrilaterals in a plane ``z = constant`` (2D), or tetrahedra or
+    hexahedra (3D; the cells of the highest dimension make the mesh).
+    Nodes are renumbered from 0 and nodes not used by a cell are dropped.
 
     Returns
     -------
-    skfem.MeshTri1 or skfem.MeshQuad1
-        Mesh with one named boundary per 1D physical group (its line
-        elements matched to mesh facets) and one named subdomain per 2D
-        physical group.  Groups without a name are named by their tag.
+    skfem.MeshTri1, skfem.MeshQuad1, skfem.MeshTet1 or skfem.MeshHex1
+        Mesh with one named boundary per physical group of the dimension
+        below the cells' (physical curves in 2D, physical surfaces in 3D;
+        their elements matched to mesh facets) and one named subdomain per
+        physical group of the cells' dimension.  Groups without a name are
+        named by their tag.
 
     Raises
     ------
     ValueError
-        If the model has no 2D cells, mixed or higher-order cells, 3D cells,
-        is not planar, or a 1D physical group has a line that is not a mesh
-        facet.
+        If the model has no 2D or 3D cells, mixed or higher-order cells, a
+        2D mesh is not planar, or a boundary group has an element that is
+        not a mesh facet.
     """
     mesh_api = gmsh.model.mesh
-    if len(mesh_api.getElements(3)[0]) > 0:
-        raise ValueError("the model has 3D cells; only 2D meshes are supported")
-    types, cell_tags, cell_nodes = mesh_api.getElements(2)
+    dim = 3 if len(mesh_api.getElements(3)[0]) > 0 else 2
+    types, cell_tags, cell_nodes = mesh_api.getElements(dim)
     if len(types) == 0:
-        raise ValueError("the model has no 2D cells (triangles or quadrilaterals)")
+        raise ValueError("the model has no 2D cells (triangles or quadrilaterals) and "
+                         "no 3D cells (tetrahedra or hexahedra)")
     if len(types) > 1:
-        raise ValueError("mixed cell types are not supported; mesh with one kind")
-    if types[0] not in (_GMSH_TRI, _GMSH_QUAD):
-        name = mesh_api.getElementProperties(types[0])[0]
-        raise ValueError(f"unsupported cell type {name!r}; use first-order cells")
-    kind = "tri" if types[0] == _GMSH_TRI else "quad"
-    nverts = 3 if kind == "tri" else 4
+        names = ", ".join(_cell_name(k) for k in types)
+        raise ValueError(f"mixed cell types ({names}) are not supported; mesh with one kind")
+    kind = _CELL_KINDS.get((dim, types[0]))
+    if kind is None:
+        raise ValueError(f"unsupported cell type {_cell_name(types[0])!r}; use first-order "
+                         + ("triangles or quadrilaterals" if dim == 2
+                            else "tetrahedra or hexahedra"))
+    nverts = {"tri": 3, "quad": 4, "tet": 4, "hex": 8}[kind]
     cell_tags = np.asarray(cell_tags[0], dtype=np.int64)
     cell_nodes = np.asarray(cell_nodes[0], dtype=np.int64).reshape(-1, nverts).T
 
@@ -282,40 +341,28 @@ def from_gmsh():
     if np.any(where < 0):
         raise ValueError("cells refer to nodes that the model does not define")
     xyz = coords[:, where]
-    scale = np.ptp(xyz[:2], axis=1).max()
-    if np.ptp(xyz[2]) > 1e-10 * scale:
-        raise ValueError("the mesh does not lie in a plane z = constant")
-    mesh = _make_mesh(xyz[:2], t, kind)
+    if dim == 2:
+        scale = np.ptp(xyz[:2], axis=1).max()
+        if np.ptp(xyz[2]) > 1e-10 * scale:
+            raise ValueError("the mesh does not lie in a plane z = constant")
+        mesh = _make_mesh(xyz[:2], t, kind)
+    else:
+        mesh = _volume_mesh(xyz, t, kind)
 
-    # named boundaries: line elements of the 1D physical groups -> facets
-    facets = mesh.facets.astype(np.int64)
-    n = mesh.p.shape[1]
-    facet_keys = facets[0] * n + facets[1]
+    # named boundaries: elements of the physical groups one dimension down -> facets
     boundaries = {}
-    for dim, tag in gmsh.model.getPhysicalGroups(1):
-        name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
-        pairs = [np.empty((0, 2), dtype=np.int64)]
-        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
-            line_types, _, line_nodes = mesh_api.getElements(1, entity)
-            for line_type, nodes in zip(line_types, line_nodes):
-                if line_type != _GMSH_LINE:
-                    raise ValueError(f"boundary {name!r} has non-linear line elements")
-                pairs.append(np.asarray(nodes, dtype=np.int64).reshape(-1, 2))
-        pairs = np.concatenate(pairs).T
-        local = _lookup(pairs.ravel(), used).reshape(pairs.shape)
-        local = np.sort(local, axis=0)
-        index = _lookup(local[0] * n + local[1], facet_keys)
-        if np.any(local[0] < 0) or np.any(index < 0):
-            raise ValueError(f"boundary {name!r} has lines that are not mesh facets")
-        boundaries[name] = np.unique(index)
+    for group_dim, tag in gmsh.model.getPhysicalGroups(dim - 1):
+        name = gmsh.model.getPhysicalName(group_dim, tag) or str(tag)
+        boundaries[name] = _named_facets(mesh, used, group_dim, tag, name,
+                                         _FACET_TYPES[kind])
 
     subdomains = {}
-    for dim, tag in gmsh.model.getPhysicalGroups(2):
-        name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
+    for group_dim, tag in gmsh.model.getPhysicalGroups(dim):
+        name = gmsh.model.getPhysicalName(group_dim, tag) or str(tag)
         tags = [np.empty(0, dtype=np.int64)]
-        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(group_dim, tag):
             tags.extend(np.asarray(x, dtype=np.int64)
-                        for x in mesh_api.getElements(2, entity)[1])
+                        for x in mesh_api.getElements(dim, entity)[1])
         subdomains[name] = np.unique(_lookup(np.concatenate(tags), cell_tags))
 
     if boundaries:
@@ -355,8 +402,9 @@ def _check_gmsh_input(path):
 def load(path, trust_geo=False):
     """Read a gmsh ``.msh`` file, or mesh a ``.geo`` file, into a scikit-fem mesh.
 
-    A ``.geo`` file is meshed in 2D with the options it sets (for example
-    ``Mesh.RecombineAll = 1;`` for quadrilaterals).  It is refused if it
+    A ``.geo`` file is meshed with the options it sets (for example
+    ``Mesh.RecombineAll = 1;`` for quadrilaterals), in 3D if it defines
+    volumes, in 2D otherwise.  It is refused if it
     runs programs, reads other files or writes files
     (:func:`skfem_rkpm.geo_check.check_geo`), unless ``trust_geo``.
 
@@ -370,14 +418,15 @@ def load(path, trust_geo=False):
 
     Returns
     -------
-    skfem.MeshTri1 or skfem.MeshQuad1
-        The mesh, as returned by :func:`from_gmsh`.
+    skfem.MeshTri1, skfem.MeshQuad1, skfem.MeshTet1 or skfem.MeshHex1
+        The mesh, as returned by :func:`from_gmsh`: physical curves (2D) or
+        surfaces (3D) are its named boundaries.
 
     Raises
     ------
     ValueError
         If the file does not exist, cannot be read by gmsh, does not
-        hold a usable 2D mesh, or is a ``.geo`` script that reaches outside
+        hold a usable mesh, or is a ``.geo`` script that reaches outside
         its geometry; the message names the file (and the line).
     """
     path = Path(path)
@@ -391,7 +440,7 @@ def load(path, trust_geo=False):
         try:
             gmsh.merge(str(path))
             if path.suffix.lower() == ".geo":
-                gmsh.model.mesh.generate(2)
+                gmsh.model.mesh.generate(3 if gmsh.model.getEntities(3) else 2)
         except Exception as error:
             raise ValueError(f"gmsh cannot read mesh file '{path}': {error}") from error
         try:

@@ -1,13 +1,14 @@
 """Background meshes with named boundaries.
 
 The meshes returned here are ordinary scikit-fem meshes
-(:class:`skfem.MeshTri1` or :class:`skfem.MeshQuad1`).  Their vertices serve
+(:class:`skfem.MeshTri1`, :class:`skfem.MeshQuad1`; in 3D
+:class:`skfem.MeshHex1`, :class:`skfem.MeshTet1`).  Their vertices serve
 as the particles of the reproducing kernel approximation and their cells as
 integration cells.  Every mesh carries named boundaries in
 ``mesh.boundaries`` (a dict of facet index arrays), so that boundary
 conditions can be written as ``mesh.boundaries["left"]``.
 
-Cells are always oriented counter-clockwise, i.e. the Jacobian of the
+2D cells are always oriented counter-clockwise, i.e. the Jacobian of the
 reference-to-physical map is positive everywhere.
 
 Unstructured meshes come from gmsh (:mod:`skfem_rkpm.gmsh_meshes`; its
@@ -15,14 +16,17 @@ functions are importable from here too).
 """
 
 import numpy as np
+import skfem
 
-from ._mesh_cells import _box, _make_mesh, _number, _signed_areas, _tensor_mesh, _with_box_sides
+from ._mesh_cells import (_box, _cells, _make_mesh, _number, _positive, _signed_areas,
+                          _tensor_mesh, _with_box_sides)
 from .gmsh_meshes import from_gmsh, gmsh_plate_with_hole, gmsh_rectangle, load
 
 __all__ = [
     "rectangle",
     "graded_rectangle",
     "piecewise_rectangle",
+    "box",
     "gmsh_rectangle",
     "gmsh_plate_with_hole",
     "from_gmsh",
@@ -170,6 +174,57 @@ def piecewise_rectangle(x, y, kind="quad"):
         coords.append(c)
     x, y = coords
     return _with_box_sides(_tensor_mesh(x, y, kind), x[0], x[-1], y[0], y[-1])
+
+
+#: the faces of a box: (name, axis, at the largest coordinate)
+BOX_FACES = (("xmin", 0, False), ("xmax", 0, True), ("ymin", 1, False),
+             ("ymax", 1, True), ("zmin", 2, False), ("zmax", 2, True))
+
+
+def box(lx, ly, lz, nx, ny, nz, kind="hex", origin=(0.0, 0.0, 0.0)):
+    """Structured mesh of a rectangular box (a cuboid).
+
+    Parameters
+    ----------
+    lx, ly, lz : float
+        Edge lengths along x, y and z.
+    nx, ny, nz : int
+        Number of cells along x, y and z.
+    kind : {"hex", "tet"}
+        ``"hex"`` gives ``nx * ny * nz`` trilinear hexahedra, ``"tet"``
+        splits each of them into tetrahedra (scikit-fem's
+        :meth:`skfem.MeshTet1.init_tensor`).
+    origin : sequence of float
+        The corner with the smallest coordinates.
+
+    Returns
+    -------
+    skfem.MeshHex1 or skfem.MeshTet1
+        Mesh with the boundaries ``"xmin"``, ``"xmax"``, ``"ymin"``,
+        ``"ymax"``, ``"zmin"``, ``"zmax"`` (the facets on each face).
+
+    Raises
+    ------
+    ValueError
+        If a length is not positive, a cell count not an integer >= 1, the
+        kind unknown or the origin not three finite numbers.
+    """
+    lengths = [_positive(v, name) for v, name in zip((lx, ly, lz), ("lx", "ly", "lz"))]
+    counts = [_cells(v, name) for v, name in zip((nx, ny, nz), ("nx", "ny", "nz"))]
+    mesh_type = {"hex": skfem.MeshHex1, "tet": skfem.MeshTet1}.get(kind)
+    if mesh_type is None:
+        raise ValueError(f"kind must be 'hex' or 'tet', got {kind!r}")
+    if np.shape(origin) != (3,):
+        raise ValueError(f"origin must be three numbers (x, y, z), not {origin!r}")
+    start = [_number(v, f"origin {a}") for v, a in zip(origin, "xyz")]
+    axes = [a + np.linspace(0.0, length, n + 1)
+            for a, length, n in zip(start, lengths, counts)]
+    mesh = mesh_type.init_tensor(*axes)
+    tol = 1e-10 * max(lengths)
+    return mesh.with_boundaries({
+        name: (lambda x, axis=axis, at=axes[axis][-1 if last else 0]:
+               np.abs(x[axis] - at) < tol)
+        for name, axis, last in BOX_FACES})
 
 
 # ---------------------------------------------------------------------------

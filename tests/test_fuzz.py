@@ -286,7 +286,7 @@ def test_random_bytes_scene_file(tmp_path_factory, data):
     ('tools.platen.kind="polyline"', "tools.platen: a polyline needs 'points'"),
     ("output.points=3", "output.points: must be a table of points"),
     ('output.points={a = "x"}', "output.points: must be a table of points"),
-    ('model.type="3d"', 'model.type: "3d" needs a 3D mesh'),
+    ('model.type="3d"', 'model.type: "3d" needs a 3D geometry'),
     ("material.H=1e309", "material.H: must be finite"),
 ])
 def test_bugs_found_by_fuzzing_are_scene_errors(setting, message):

@@ -10,7 +10,8 @@ boundaries), the :class:`~skfem_rkpm.mechanics.loads.BoundaryLoads`
 from dataclasses import dataclass, field
 
 import numpy as np
-from skfem import Basis, ElementQuad1, ElementQuad2, ElementTriP1, ElementTriP2, ElementVector
+from skfem import (Basis, ElementHex1, ElementHex2, ElementQuad1, ElementQuad2, ElementTetP1,
+                   ElementTetP2, ElementTriP1, ElementTriP2, ElementVector)
 
 from ..approximation.basis import RKBasis
 from ..mechanics.force_control import ForceDrivenContact
@@ -21,13 +22,20 @@ from ..mechanics.rigid_contact import RigidContact, ToolSideError
 from ..mechanics.tools import Arc, Platen, Polyline
 from ..solvers.newton import Prescribed
 from .memory import check_rk_memory
-from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from, mesh_from,
+from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from,
                     prescribed_components, spacing_radius)
+from .scene_geometry import check_mesh, mesh_from
 
 __all__ = ["Simulation", "build", "resolve_locking", "tool_from_scene"]
 
 ELEMENTS = {"quad1": ElementQuad1, "quad2": ElementQuad2, "tri1": ElementTriP1,
-            "tri2": ElementTriP2}
+            "tri2": ElementTriP2, "hex1": ElementHex1, "hex2": ElementHex2,
+            "tet1": ElementTetP1, "tet2": ElementTetP2}
+
+#: the linear elements (F-bar by default) and the elements of each kind of cell
+LINEAR_ELEMENTS = ("quad1", "tri1", "hex1", "tet1")
+FITTING = {"MeshQuad1": "quad1 or quad2", "MeshTri1": "tri1 or tri2",
+           "MeshHex1": "hex1 or hex2", "MeshTet1": "tet1 or tet2"}
 
 
 @dataclass
@@ -73,7 +81,7 @@ def resolve_locking(locking, method, element, scene):
     if locking != "auto":
         return locking
     if method == "fem":
-        return "fbar" if element in ("quad1", "tri1") else "none"
+        return "fbar" if element in LINEAR_ELEMENTS else "none"
     slides = False
     for name, section in scene.items():
         if name.startswith("tools.") and section.get("friction") not in (None, "stick"):
@@ -89,6 +97,7 @@ def build(scene, method=None, trust_geo=False):
     model = scene["model"]["type"]
     method = method or scene["model"]["method"]
     mesh = mesh_from(scene["geometry"], scene.get("_base"), trust_geo)
+    check_mesh(scene, mesh)
     boundaries = set((mesh.boundaries or {}).keys())
     disc = scene["discretization"]
     if method == "rkpm":
@@ -109,8 +118,9 @@ def build(scene, method=None, trust_geo=False):
     else:
         element = ELEMENTS[disc["element"]]()
         if element.refdom != mesh.refdom:
+            name = type(mesh).__name__
             raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
-                             f"the {type(mesh).__name__} cells")
+                             f"the {name} cells; use {FITTING.get(name, 'another')}")
         basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
     locking = resolve_locking(disc["locking"], method, disc["element"], scene)
     locking = None if locking == "none" else locking
@@ -156,8 +166,10 @@ def _named(boundaries, scene):
     if boundaries:
         return f"it has {sorted(boundaries)}"
     if scene["geometry"]["kind"] == "gmsh":
+        what = (("surfaces", "Surface") if scene["model"]["type"] == "3d"
+                else ("curves", "Curve"))
         return (f"the file {scene['geometry']['file']} defines no named boundaries: give "
-                f"its boundary curves names with Physical Curve(\"name\") = {{...}};")
+                f"its boundary {what[0]} names with Physical {what[1]}(\"name\") = {{...}};")
     return "it has no named boundaries"
 
 

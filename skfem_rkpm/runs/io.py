@@ -22,16 +22,27 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from skfem.io.meshio import HEX_MAPPING
 
 from ..solvers.newton import StepRecord
 from .folder import atomic_path, open_append, write_atomic
 
-__all__ = ["nodal_displacements", "corner_jacobians", "cell_averages", "history_row", "write_history",
+__all__ = ["nodal_displacements", "corner_jacobians", "xdmf_cells", "cell_averages",
+           "nodal_plastic_strain",
+           "history_row", "write_history",
            "HistoryFile", "record_to_json", "record_from_json", "FieldWriter"]
 
 #: XDMF topology of each scikit-fem mesh type
 XDMF_CELLS = {"MeshTri1": "Triangle", "MeshQuad1": "Quadrilateral",
               "MeshTet1": "Tetrahedron", "MeshHex1": "Hexahedron"}
+
+
+def xdmf_cells(mesh):
+    """The cells of ``mesh`` (ncells, vertices) in XDMF's (VTK's) vertex
+    order: scikit-fem numbers the vertices of a hexahedron otherwise."""
+    if type(mesh).__name__ == "MeshHex1":
+        return mesh.t[HEX_MAPPING[:8]].T
+    return mesh.t.T
 
 
 def nodal_displacements(basis, d):
@@ -47,28 +58,47 @@ def nodal_displacements(basis, d):
 
 
 def corner_jacobians(mesh, u):
-    """In-plane ``det F`` at the corners of every cell of the mesh moved by
-    the vertex displacements ``u`` (nvertices, 2), shape (ncells, ncorners).
+    """``det F`` at the corners of every cell of the mesh moved by the vertex
+    displacements ``u`` (nvertices, dim), shape (ncells, ncorners).
 
-    The ratio of the cross products of the two edges meeting at a corner,
-    deformed over undeformed: ``det F`` of the bilinear (quadrilateral) or
-    linear (triangle) map through the moved vertices, at the vertex.  For
-    Q1 and P1 elements this is the discretization's own ``det F`` there;
-    for RK particles and quadratic elements that of the cells drawn in
-    ``deformed.png``.  Negative: the cell is folded at that corner.
+    At each corner, the determinant of the edges to its neighbours along
+    the reference axes (quadrilaterals, hexahedra) or to the other vertices
+    (triangles, tetrahedra), deformed over undeformed: ``det F`` of the
+    bilinear or trilinear (linear) map through the moved vertices, at the
+    vertex.  For Q1, P1, Hex1 and Tet1 elements this is the
+    discretization's own ``det F`` there; for RK particles and quadratic
+    elements that of the cells drawn in the figures.  Negative: the cell is
+    folded at that corner.
     """
     t = mesh.t[:mesh.refdom.nnodes]
     X = mesh.p
     x = X + np.asarray(u).T
+    edges = _corner_edges(mesh)  # (ncorners, dim): the corners each edge ends at
 
-    def cross(points):
-        here = points[:, t]
-        after = points[:, np.roll(t, -1, axis=0)]
-        before = points[:, np.roll(t, 1, axis=0)]
-        a, b = after - here, before - here
-        return a[0] * b[1] - a[1] * b[0]
+    def volumes(points):
+        corners = points[:, t]  # (dim, ncorners, ncells)
+        vectors = corners[:, edges] - corners[:, :, None]  # (dim, ncorners, dim, ncells)
+        return np.linalg.det(np.moveaxis(vectors, (0, 2), (-2, -1)))  # (ncorners, ncells)
 
-    return (cross(x) / cross(X)).T
+    return (volumes(x) / volumes(X)).T
+
+
+def _corner_edges(mesh):
+    """For each corner of the reference cell, the corners at the ends of its
+    ``dim`` edges: the neighbours along each reference axis (tensor-product
+    cells) or the other vertices in order (simplices)."""
+    dim = mesh.dim()
+    corners = np.asarray(type(mesh).elem().doflocs)[:mesh.refdom.nnodes]
+    n = len(corners)
+    if n == dim + 1:  # a simplex
+        return np.array([[j for j in range(n) if j != i] for i in range(n)])
+    edges = np.empty((n, dim), dtype=int)
+    for i, c in enumerate(corners):
+        for axis in range(dim):
+            other = c.copy()
+            other[axis] = 1.0 - other[axis]
+            edges[i, axis] = np.flatnonzero(np.all(corners == other, axis=1))[0]
+    return edges
 
 
 def cell_averages(values, dx):
@@ -77,6 +107,19 @@ def cell_averages(values, dx):
     v = np.asarray(values).reshape((nelems, nqp) + np.shape(values)[1:])
     w = dx / dx.sum(axis=1, keepdims=True)
     return np.einsum("eq,eq...->e...", w, v)
+
+
+def nodal_plastic_strain(problem):
+    """Equivalent plastic strain averaged from the cells to the mesh vertices
+    (with nodal integration: the values at the particles)."""
+    mesh = problem.basis.mesh
+    if getattr(problem.basis, "nodal_quadrature", None) is not None:
+        return problem.state.alpha
+    cells = cell_averages(problem.state.alpha, problem.assembler.layout.dx)
+    total = np.bincount(mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]),
+                        minlength=mesh.nvertices)
+    count = np.bincount(mesh.t.ravel(), minlength=mesh.nvertices)
+    return total / np.maximum(count, 1)
 
 
 def history_row(record, extra=None):
@@ -238,7 +281,7 @@ class FieldWriter:
             points[:, : mesh.dim()] = mesh.p.T
             with atomic_path(self.folder / "mesh.h5") as tmp, h5py.File(tmp, "x") as f:
                 f["points"] = points
-                f["cells"] = mesh.t.T.astype(np.int64)
+                f["cells"] = xdmf_cells(mesh).astype(np.int64)
         self._write_index()
 
     def __enter__(self):

@@ -1,8 +1,9 @@
 """Figures of a run: deformed particles coloured by plastic strain
-(``deformed.png``), tool forces and reactions (``forces.png``) and, for a
-ring scene, the inner-diameter change against the height reduction
-(``calibration.png``).  Axes carry the scene's units (``model.length_unit``,
-``model.force_unit``)."""
+(``deformed.png``; 3D: the deformed surface and ``section.png``, see
+:mod:`skfem_rkpm.runs.plot3d`), tool forces and reactions (``forces.png``)
+and, for a ring scene, the inner-diameter change against the height
+reduction (``calibration.png``).  Axes carry the scene's units
+(``model.length_unit``, ``model.force_unit``)."""
 
 import matplotlib
 
@@ -10,34 +11,26 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .io import cell_averages, nodal_displacements  # noqa: E402
+from .io import nodal_displacements, nodal_plastic_strain  # noqa: E402
+from .plot3d import figures_3d, plot_section  # noqa: E402
 
 __all__ = ["nodal_plastic_strain", "plot_deformed", "plot_history", "save_run_figures",
            "run_figures", "height_reduction", "inner_diameter_change", "friction_text",
            "force_label", "force_axis_label", "calibration_figure"]
 
 
-def nodal_plastic_strain(problem):
-    """Equivalent plastic strain averaged from the cells to the mesh vertices
-    (with nodal integration: the values at the particles)."""
-    mesh = problem.basis.mesh
-    if getattr(problem.basis, "nodal_quadrature", None) is not None:
-        return problem.state.alpha
-    cells = cell_averages(problem.state.alpha, problem.assembler.layout.dx)
-    total = np.bincount(mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]),
-                        minlength=mesh.nvertices)
-    count = np.bincount(mesh.t.ravel(), minlength=mesh.nvertices)
-    return total / np.maximum(count, 1)
-
-
 def _axis_names(scene):
-    return ("r", "z") if scene["model"]["type"] == "axisymmetric" else ("x", "y")
+    return {"axisymmetric": ("r", "z"), "3d": ("x", "y", "z")}.get(scene["model"]["type"],
+                                                                  ("x", "y"))
 
 
 def plot_deformed(ax, problem, d, title="", vmax=None, show_cells=True, scene=None):
     """Particles at their current positions coloured by ε̄ᵖ, over the deformed
-    cells; with ``scene`` the axes are labelled in its length unit."""
+    cells; with ``scene`` the axes are labelled in its length unit.  In 3D
+    the section through the middle (:func:`skfem_rkpm.runs.plot3d.plot_section`)."""
     mesh = problem.basis.mesh
+    if mesh.dim() == 3:
+        return plot_section(ax, problem, d, title, vmax, scene)
     x = mesh.p + nodal_displacements(problem.basis, d).T
     if show_cells:
         for cell in mesh.t.T:
@@ -103,7 +96,7 @@ def force_label(key, scene):
     if key.endswith("]"):
         boundary, component = key[:-1].split("[")
         return f"boundary {boundary}, reaction {names[int(component)]}"
-    return f"{key}, force {names[1]}"
+    return f"{key}, force {names[-1]}"
 
 
 def plot_history(ax, history, key, label, scale=1.0, x=None):
@@ -121,7 +114,8 @@ def plot_history(ax, history, key, label, scale=1.0, x=None):
 
 
 def force_axis_label(scene):
-    full = ", full ring" if scene["model"]["type"] == "axisymmetric" else ", per unit thickness"
+    full = {"axisymmetric": ", full ring", "3d": ""}.get(scene["model"]["type"],
+                                                        ", per unit thickness")
     return f"force on the part ({scene['model']['force_unit']}{full})"
 
 
@@ -142,17 +136,11 @@ def run_figures(sim, result):
     reduction = height_reduction(sim, t)
     progress = (f"height reduction {reduction[-1]:.3g} %" if reduction is not None
                 and len(t) else f"t = {t[-1] if len(t) else 0:.3g}")
-    x = sim.mesh.p + nodal_displacements(sim.basis, result.d).T
-    aspect = np.ptp(x[1]) / max(np.ptp(x[0]), 1e-300)
-    wide = aspect < 0.8  # a flat part: the colour bar below it
-    fig, ax = plt.subplots(figsize=(7.0, float(np.clip(6.0 * aspect + 2.4, 3.6, 7.5))))
-    art = plot_deformed(ax, sim.problem, result.d,
-                        f"{scene['model']['title'] or 'run'} ({sim.method.upper()}), "
-                        f"{friction_text(scene)}\n{progress}", scene=scene)
-    fig.colorbar(art, ax=ax, label="equivalent plastic strain",
-                 orientation="horizontal" if wide else "vertical",
-                 fraction=0.08 if wide else 0.05, pad=0.18 if wide else 0.04)
-    figures["deformed.png"] = fig
+    title = f"{_run_title(sim)}\n{progress}"
+    if sim.mesh.dim() == 3:
+        figures.update(figures_3d(sim, result, title))
+    else:
+        figures["deformed.png"] = _deformed_figure(sim, result, title)
     keys = sorted({k for r in history for k in r.reactions},
                   key=lambda k: (k.endswith("]"), k))  # tools first
     if keys:
@@ -163,8 +151,7 @@ def run_figures(sim, result):
             ax.set_xlabel("height reduction (%)")
         ax.set_ylabel(force_axis_label(scene))
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
-        ax.set_title(f"{scene['model']['title'] or 'run'} ({sim.method.upper()}), "
-                     f"{friction_text(scene)}")
+        ax.set_title(_run_title(sim))
         ax.legend(fontsize=8)
         fig.tight_layout()
         figures["forces.png"] = fig
@@ -173,6 +160,26 @@ def run_figures(sim, result):
         figures["calibration.png"] = calibration_figure(sim, np.r_[0.0, reduction],
                                                         np.r_[0.0, change])
     return figures
+
+
+def _run_title(sim):
+    """``ring (RKPM), μ = 0.15``; without tools no friction."""
+    friction = friction_text(sim.scene)
+    return (f"{sim.scene['model']['title'] or 'run'} ({sim.method.upper()})"
+            + (f", {friction}" if friction else ""))
+
+
+def _deformed_figure(sim, result, title):
+    """``deformed.png`` of a 2D run, sized to the part's aspect ratio."""
+    x = sim.mesh.p + nodal_displacements(sim.basis, result.d).T
+    aspect = np.ptp(x[1]) / max(np.ptp(x[0]), 1e-300)
+    wide = aspect < 0.8  # a flat part: the colour bar below it
+    fig, ax = plt.subplots(figsize=(7.0, float(np.clip(6.0 * aspect + 2.4, 3.6, 7.5))))
+    art = plot_deformed(ax, sim.problem, result.d, title, scene=sim.scene)
+    fig.colorbar(art, ax=ax, label="equivalent plastic strain",
+                 orientation="horizontal" if wide else "vertical",
+                 fraction=0.08 if wide else 0.05, pad=0.18 if wide else 0.04)
+    return fig
 
 
 def calibration_figure(sim, reduction, change):

@@ -261,7 +261,7 @@ def final_state_message(sim, d):
     cell, corner = np.unravel_index(np.argmin(J), J.shape)
     X = mesh.p[:, mesh.t[corner, cell]]
     return (f"completed with inverted cells: det F = {J[cell, corner]:.3g} <= 0 at the "
-            f"corner X = ({X[0]:.4g}, {X[1]:.4g}) of cell {cell} ({int(bad.any(axis=1).sum())} "
+            f"corner X = ({', '.join(f'{v:.4g}' for v in X)}) of cell {cell} ({int(bad.any(axis=1).sum())} "
             f"of {J.shape[0]} cells folded); the final state is not a valid deformation: "
             f"use more load steps, a finer mesh or another discretization")
 

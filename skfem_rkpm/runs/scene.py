@@ -19,18 +19,15 @@ from pathlib import Path
 import numpy as np
 
 from ..solvers.backend import BACKENDS
-from .scene_values import (COMPONENTS, HISTORY, _angle_span, _annulus_radii, _cell_counts,
-                           _flow_curve, _friction, _grading, _history, _increasing_pair,
-                           _named_points, _non_negative, _not_empty, _pair, _poisson,
-                           _polyline_points, _positive, _quadrature, _segments,
-                           _vector_history)
+from .scene_geometry import check_components, check_geometry, mesh_from
+from .scene_values import (COMPONENTS, HISTORY, SceneError, _angle_span, _annulus_radii,
+                           _cell_counts, _flow_curve, _friction, _grading, _history,
+                           _increasing_pair, _named_points, _non_negative, _not_empty, _pair,
+                           _poisson, _polyline_points, _positive, _quadrature, _segments,
+                           _triple, _vector_history)
 
 __all__ = ["SceneError", "SCHEMA", "load_scene", "parse_scene", "apply_setting",
-           "schema_markdown", "prescribed_components"]
-
-
-class SceneError(ValueError):
-    """A scene file is wrong; the message names the key and the line."""
+           "schema_markdown", "prescribed_components", "mesh_from"]
 
 
 @dataclass(frozen=True)
@@ -52,7 +49,8 @@ DEFAULT_STABILIZATION = 1e-3
 SCHEMA = {
     "model": {
         "type": Key("str", "plane_strain", choices=("plane_strain", "axisymmetric", "3d"),
-                    doc="kinematic model; axisymmetric: x is the radius, forces for the full ring"),
+                    doc="kinematic model; axisymmetric: x is the radius, forces for the full "
+                        "ring; 3d: a box or a gmsh volume mesh"),
         "method": Key("str", "rkpm", choices=("rkpm", "fem"), doc="discretization method"),
         "title": Key("str", "", doc="a name for reports"),
         "length_unit": Key("str", "mm", doc="unit of lengths, for the axes of figures and "
@@ -60,16 +58,18 @@ SCHEMA = {
         "force_unit": Key("str", "N", doc="unit of forces, for figures and reports"),
     },
     "geometry": {
-        "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "gmsh"),
+        "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "box", "gmsh"),
                     doc="rectangle section with divisions, ring or ring sector (annulus), "
-                        "or a gmsh .geo/.msh file"),
+                        "3D box, or a gmsh .geo/.msh file (2D or 3D)"),
         "x": Key("list[float]", check=_increasing_pair, doc="rectangle: [xmin, xmax]"),
         "y": Key("list[float]", check=_increasing_pair, doc="rectangle: [ymin, ymax]"),
         "divisions": Key("list[int]", check=_cell_counts,
                          doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) "
-                             "vertices; annulus: cells [across the wall, around]"),
-        "cells": Key("str", "quad", choices=("quad", "tri"),
-                     doc="rectangle, annulus: cell type"),
+                             "vertices; annulus: cells [across the wall, around]; box: "
+                             "cells [nx, ny, nz]"),
+        "cells": Key("str", choices=("quad", "tri", "hex", "tet"),
+                     doc="cell type; rectangle, annulus: quad (default) or tri; box: hex "
+                         "(default) or tet"),
         "grading": Key("list[float]", check=_grading,
                        doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform); "
                            "annulus: [across the wall (smallest at the inner radius), 1]"),
@@ -79,8 +79,15 @@ SCHEMA = {
                       doc="annulus: [start, end] in degrees from the x axis; a sector "
                           "(span < 360) also has the straight boundaries start and end"),
         "center": Key("list[float]", [0.0, 0.0], check=_pair, doc="annulus: center"),
+        "lx": Key("float", check=_positive, doc="box: edge length along x"),
+        "ly": Key("float", check=_positive, doc="box: edge length along y"),
+        "lz": Key("float", check=_positive, doc="box: edge length along z"),
+        "origin": Key("list[float]", [0.0, 0.0, 0.0], check=_triple,
+                      doc="box: the corner with the smallest coordinates [x, y, z]; "
+                          "boundaries xmin, xmax, ymin, ymax, zmin, zmax"),
         "file": Key("str", doc="gmsh: path of a .msh or .geo file (relative to the scene file) "
-                               "with named physical boundaries"),
+                               "with named physical boundaries: Physical Curve (2D) or "
+                               "Physical Surface (3D; a .geo with volumes is meshed in 3D)"),
         "x_segments": Key("any", check=_segments,
                           doc="rectangle: piecewise uniform cells in x, [[x_end, cells], ...] "
                               "from x[0] to x[1] (replaces divisions[0] and grading)"),
@@ -104,8 +111,11 @@ SCHEMA = {
                                  f"(default {DEFAULT_STABILIZATION}; 0: plain SCNI)"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
-        "element": Key("str", "quad1", choices=("quad1", "quad2", "tri1", "tri2"),
-                       doc="fem: element"),
+        "element": Key("str", "quad1",
+                       choices=("quad1", "quad2", "tri1", "tri2", "hex1", "hex2", "tet1",
+                                "tet2"),
+                       doc="fem: element; it must fit the cells (hex1, hex2 on hexahedra, "
+                           "tet1, tet2 on tetrahedra)"),
         "locking": Key("str", "auto", choices=("none", "fbar", "auto"),
                        doc="volumetric locking control; auto: F-bar for RKPM and linear "
                            "FEM elements, none for quadratic elements and for RKPM when "
@@ -177,7 +187,8 @@ SCHEMA = {
     },
     "boundary.*": {
         "fix": Key("list[str]", doc='components held at 0 on this boundary, e.g. ["y"] for '
-                                    'a symmetry plane, ["x", "y"] to clamp'),
+                                    'a symmetry plane y = const (3D: ["z"] for z = const), '
+                                    '["x", "y"] to clamp'),
         "method": Key("str", "nodal", choices=("nodal", "weak"),
                       doc="prescribe nodal values (transformation method) or weakly"),
         "pressure": Key("any", check=_history,
@@ -188,11 +199,12 @@ SCHEMA = {
                             "length follow the deformation) instead of the reference one"),
         "traction": Key("any", check=_vector_history,
                         doc="traction vector per unit reference length (axisymmetric: area "
-                            "of the full ring), a dead load: [x, y] reached linearly in t, "
-                            "or {x = ..., y = ...}, each " + HISTORY),
+                            "of the full ring; 3D: area), a dead load: [x, y] (3D: [x, y, z]) "
+                            "reached linearly in t, or {x = ..., y = ...}, each " + HISTORY),
         "displacement": Key("any", check=_vector_history,
                             doc="prescribed displacement of the boundary's points: [x, y] "
-                                "reached linearly in t, or only some components, "
+                                "(3D: [x, y, z]) reached linearly in t, or only some "
+                                "components, "
                                 "{y = ...}, each " + HISTORY + "; enforced as fix "
                                 "(method)"),
     },
@@ -210,8 +222,8 @@ SCHEMA = {
         "every": Key("int", 1, check=_positive, doc="write fields every n-th step"),
         "figures": Key("bool", True, doc="write PNG figures"),
         "points": Key("any", {}, check=_named_points,
-                      doc="material points to follow, {name = [X, Y]}; their "
-                          "current positions go into history.csv"),
+                      doc="material points to follow, {name = [X, Y]} (3D: [X, Y, Z]); "
+                          "their current positions go into history.csv"),
     },
 }
 
@@ -342,30 +354,8 @@ def _section(path, values, fail):
 
 
 def _check_combinations(scene, fail):
-    geometry = scene["geometry"]
-    if scene["model"]["type"] == "3d":
-        fail("model.type", '"3d" needs a 3D mesh, but scene geometries (rectangle, gmsh) '
-                           'are 2D sections; use "plane_strain" or "axisymmetric"')
-    if geometry["kind"] == "annulus":
-        for key in ("radii", "divisions"):
-            if geometry[key] is None:
-                fail("geometry", f"an annulus needs {key!r}")
-        if geometry["grading"] is not None and geometry["grading"][1] != 1.0:
-            fail("geometry.grading", "an annulus is graded across the wall only; give "
-                                     "[ratio, 1]")
-    elif geometry["kind"] == "rectangle":
-        for key in ("x", "y", "divisions"):
-            if geometry[key] is None:
-                fail("geometry", f"a rectangle needs {key!r}")
-        for axis, key in enumerate(("x_segments", "y_segments")):
-            span = geometry["xy"[axis]]
-            if geometry[key] is not None:
-                first, last = geometry[key][0][0], geometry[key][-1][0]
-                if not (first > span[0] and abs(last - span[1]) <= 1e-9 * max(abs(span[1]), 1)):
-                    fail(f"geometry.{key}", f"segment ends must lie in ({span[0]:g}, "
-                                            f"{span[1]:g}] and the last must be {span[1]:g}")
-    elif geometry["file"] is None:
-        fail("geometry", "kind = \"gmsh\" needs 'file'")
+    check_geometry(scene, fail)
+    check_components(scene, fail)
     material = scene["material"]
     law = material["hardening"]
     needs = {"swift": ("K", "n"), "voce": ("yield", "Q", "b"), "table": ("curve",),
@@ -380,15 +370,6 @@ def _check_combinations(scene, fail):
         if name.startswith("boundary.") and section["follower"] \
                 and section["pressure"] is None:
             fail(f"{name}.follower", "applies to a pressure; give 'pressure'")
-        if name.startswith("boundary.") and section["fix"]:
-            for comp in section["fix"]:
-                if comp not in COMPONENTS:
-                    fail(f"{name}.fix", f"unknown component {comp!r}; use x, y, z or r")
-            moved = prescribed_components(section["displacement"])
-            both = sorted(set(components(section["fix"])) & set(moved))
-            if both:
-                fail(f"{name}.displacement", f"component {'xy'[both[0]]} is also in fix; "
-                                             "fix holds it at 0, give it once")
         if name.startswith("tools."):
             needs = {"platen": ("point", "normal"), "polyline": ("points",),
                      "arc": ("center", "radius", "angles")}[section["kind"]]
@@ -560,59 +541,6 @@ def tool_from(name, section):
     if kind == "arc":
         return Arc(section["center"], section["radius"], section["angles"], motion, name)
     raise SceneError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
-
-
-def mesh_from(section, base=None, trust_geo=False):
-    """The background mesh of a scene's geometry section (``trust_geo``: let a
-    ``.geo`` file run programs or read other files, see
-    :func:`skfem_rkpm.geo_check.check_geo`)."""
-    from ..meshes import graded_rectangle, load, rectangle
-
-    if section["kind"] == "annulus":
-        from ..annulus import annulus
-
-        nr, nt = section["divisions"]
-        grading = (section.get("grading") or [1.0, 1.0])[0]
-        try:
-            return annulus(*section["radii"], nr, nt, section.get("angles") or (0.0, 360.0),
-                           grading, section["cells"], section.get("center") or (0.0, 0.0))
-        except ValueError as err:
-            raise SceneError(f"geometry: {err}") from err
-    if section["kind"] == "gmsh":
-        path = Path(section["file"])
-        if base is not None and not path.is_absolute():
-            path = Path(base) / path
-        try:
-            return load(path, trust_geo=trust_geo)
-        except ValueError as err:
-            raise SceneError(f"geometry.file: {err}") from err
-    (x0, x1), (y0, y1) = section["x"], section["y"]
-    nx, ny = section["divisions"]
-    if section.get("x_segments") or section.get("y_segments"):
-        from ..meshes import piecewise_rectangle
-
-        return piecewise_rectangle(_breaks(x0, x1, nx, section.get("x_segments")),
-                                   _breaks(y0, y1, ny, section.get("y_segments")),
-                                   kind=section["cells"])
-    grading = section["grading"] or [1.0, 1.0]
-    if grading != [1.0, 1.0]:
-        if grading[0] != grading[1]:
-            raise SceneError("geometry.grading: different ratios per direction are "
-                             "not supported yet; give equal values")
-        mesh = graded_rectangle(x1 - x0, y1 - y0, nx, ny, grading[0], kind=section["cells"])
-        return mesh.translated((x0, y0))
-    return rectangle(x1 - x0, y1 - y0, nx, ny, kind=section["cells"], origin=(x0, y0))
-
-
-def _breaks(start, stop, cells, segments):
-    """Vertex coordinates of piecewise uniform divisions (``[[end, cells], ...]``)."""
-    if not segments:
-        return np.linspace(start, stop, cells + 1)
-    parts, a = [np.array([start])], start
-    for end, n in segments:
-        parts.append(np.linspace(a, end, n + 1)[1:])
-        a = end
-    return np.concatenate(parts)
 
 
 def spacing_radius(mesh, section):

@@ -1,10 +1,16 @@
 """Checks of single scene values: each takes a value and returns what is
 wrong with it (a text for the error message) or None.  Used by the
-schema of :mod:`skfem_rkpm.runs.scene`."""
+schema of :mod:`skfem_rkpm.runs.scene`, which raises :class:`SceneError`.
+"""
 
 import math
 
-__all__ = ["COMPONENTS", "HISTORY", "MAX_QUADRATURE"]
+__all__ = ["SceneError", "COMPONENTS", "HISTORY", "MAX_QUADRATURE"]
+
+
+class SceneError(ValueError):
+    """A scene file is wrong; the message names the key and the line."""
+
 
 def _positive(v):
     return None if v > 0 else "must be positive"
@@ -33,9 +39,13 @@ def _not_empty(v):
     return None if v else "must name at least one boundary (omit the key for all of them)"
 
 
+def _triple(v):
+    return None if len(v) == 3 else "needs three values [x, y, z]"
+
+
 def _cell_counts(v):
-    if len(v) != 2:
-        return "needs two values [nx, ny]"
+    if len(v) not in (2, 3):
+        return "needs two values [nx, ny] (a box: three, [nx, ny, nz])"
     return None if min(v) >= 1 else "needs at least one cell in each direction"
 
 
@@ -62,9 +72,12 @@ def _polyline_points(v):
 
 
 def _named_points(v):
-    if isinstance(v, dict) and all(_xy(p) for p in v.values()):
+    if isinstance(v, dict) and all(
+            isinstance(p, list) and len(p) in (2, 3) and all(_is_number(x) for x in p)
+            and all(math.isfinite(x) for x in p) for p in v.values()):
         return None
-    return "must be a table of points, {name = [X, Y], ...}, of finite numbers"
+    return ("must be a table of points, {name = [X, Y], ...} (3D: [X, Y, Z]), of finite "
+            "numbers")
 
 
 def _increasing_pair(v):
@@ -115,15 +128,15 @@ def _history(v):
 
 
 def _vector_history(v):
-    message = ("must be a vector [x, y] of numbers (each reached linearly in t) or a "
-               f"table {{x = ..., y = ...}} of components, each {HISTORY}")
+    message = ("must be a vector [x, y] (3D: [x, y, z]) of numbers (each reached linearly "
+               f"in t) or a table {{x = ..., y = ...}} of components, each {HISTORY}")
     if isinstance(v, list):
-        return None if len(v) == 2 and all(_is_number(x) and math.isfinite(x)
-                                           for x in v) else message
+        return None if len(v) in (2, 3) and all(_is_number(x) and math.isfinite(x)
+                                                for x in v) else message
     if isinstance(v, dict) and v:
         for name, value in v.items():
             if name not in COMPONENTS:
-                return f"unknown component {name!r}; use x or y (r for x)"
+                return f"unknown component {name!r}; use x, y or z (r for x)"
             if not _history_value(value):
                 return f"component {name}: must be {HISTORY} with increasing t in [0, 1]"
         if len({COMPONENTS[n] for n in v}) != len(v):

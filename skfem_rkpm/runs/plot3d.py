@@ -62,10 +62,11 @@ def plot_surface(ax, problem, d, title="", vmax=None, scene=None):
 def section_layer(mesh):
     """``(vertices, Y)``: the vertices of the layer nearest to the middle plane
     of the mesh in y (within a quarter of the median spacing of the nearest
-    vertex's reference y), and that y."""
+    vertex's reference y; of two as near, the lower), and that y."""
     Y = mesh.p[SECTION_AXIS]
-    middle = 0.5 * (Y.min() + Y.max())
-    nearest = Y[np.argmin(np.abs(Y - middle))]
+    distance = np.abs(Y - 0.5 * (Y.min() + Y.max()))
+    # of two layers as near (an odd number of cells), the lower one
+    nearest = Y[distance <= distance.min() + 1e-9 * np.ptp(Y)].min()
     width = 0.25 * np.nanmedian(local_spacing(mesh))
     return np.flatnonzero(np.abs(Y - nearest) <= width), float(nearest)
 

@@ -44,8 +44,9 @@ def _settings(runs, source, settings):
     lines = ["## Settings", "", f"- scene: `{source or scene.get('_source')}`"]
     lines += [f"- `--set {s}`" for s in settings] or ["- no `--set`"]
     steps, disc = scene["steps"], scene["discretization"]
-    lines += [f"- model: {scene['model']['type']}, {friction_text(scene)}, "
-              f"{steps['count']} load steps, tolerance {steps['tolerance']:g}",
+    friction = friction_text(scene)
+    lines += [f"- model: {scene['model']['type']}, " + (f"{friction}, " if friction else "")
+              + f"{steps['count']} load steps, tolerance {steps['tolerance']:g}",
               f"- rkpm: order {disc['order']}, "
               + (f"support {disc['support']:g} {scene['model']['length_unit']}"
                  if disc["support"] is not None else f"dilation {disc['dilation']:g}")
@@ -81,8 +82,9 @@ def write_comparison(runs, out, settings=(), source=None):
     ax = axes[-1]
     for m in runs:
         sim, result = runs[m]
-        tools = [k for k in (result.history[-1].reactions if result.history else {})
-                 if not k.endswith("]")]
+        reactions = result.history[-1].reactions if result.history else {}
+        # the tools' forces; without tools the reactions of the boundaries
+        tools = [k for k in reactions if not k.endswith("]")] or list(reactions)
         reduction = height_reduction(sim, [r.t for r in result.history])
         for key in tools:
             plot_history(ax, result.history, key, f"{m}: {force_label(key, sim.scene)}",

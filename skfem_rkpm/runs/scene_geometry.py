@@ -146,9 +146,8 @@ def check_mesh(scene, mesh):
     from skfem.quadrature import get_quadrature
 
     geometry = scene["geometry"]
-    what = (f"geometry.file {geometry['file']!r} holds a {mesh.dim()}D mesh "
-            f"({type(mesh).__name__})" if geometry["kind"] == "gmsh"
-            else f'geometry.kind = "{geometry["kind"]}"')
+    what = (f"the mesh of geometry.file {geometry['file']!r} ({type(mesh).__name__})"
+            if geometry["kind"] == "gmsh" else f'geometry.kind = "{geometry["kind"]}"')
     problem = _fits(scene["model"]["type"], mesh.dim(), what)
     if problem:
         raise SceneError(f"model.type: {problem}")

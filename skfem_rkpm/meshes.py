@@ -32,6 +32,7 @@ __all__ = [
     "from_gmsh",
     "load",
     "local_spacing",
+    "plane_normal",
 ]
 
 
@@ -225,6 +226,46 @@ def box(lx, ly, lz, nx, ny, nz, kind="hex", origin=(0.0, 0.0, 0.0)):
         name: (lambda x, axis=axis, at=axes[axis][-1 if last else 0]:
                np.abs(x[axis] - at) < tol)
         for name, axis, last in BOX_FACES})
+
+
+def plane_normal(mesh, boundary, tol=1e-8):
+    """Unit normal of a flat named boundary: a straight line in 2D, a plane
+    in 3D (e.g. a symmetry plane at any angle).
+
+    The normal is the direction in which the boundary's vertices spread
+    least (the last right singular vector of their centred coordinates),
+    signed so that its largest component is positive.
+
+    Parameters
+    ----------
+    mesh : skfem.Mesh
+    boundary : str
+        Name in ``mesh.boundaries``.
+    tol : float
+        The vertices may lie off the plane by ``tol`` times the boundary's
+        extent.
+
+    Raises
+    ------
+    ValueError
+        If the mesh has no such boundary, or it is not flat (naming how far
+        its vertices lie off the best plane).
+    """
+    if boundary not in (mesh.boundaries or {}):
+        raise ValueError(f"the mesh has no boundary {boundary!r}; it has "
+                         f"{sorted(mesh.boundaries or {})}")
+    points = mesh.p[:, np.unique(mesh.facets[:, mesh.boundaries[boundary]])]
+    offsets = (points - points.mean(axis=1, keepdims=True)).T
+    _, _, directions = np.linalg.svd(offsets, full_matrices=False)
+    normal = directions[-1] * np.sign(directions[-1][np.argmax(np.abs(directions[-1]))])
+    off = np.abs(offsets @ normal).max()
+    extent = np.linalg.norm(offsets, axis=1).max()
+    if off > tol * extent:
+        what = "straight" if mesh.dim() == 2 else "flat"
+        raise ValueError(f"boundary {boundary!r} is not {what}: its vertices lie up to "
+                         f"{off:.3g} off the best {'line' if mesh.dim() == 2 else 'plane'} "
+                         f"(extent {extent:.3g})")
+    return normal
 
 
 # ---------------------------------------------------------------------------

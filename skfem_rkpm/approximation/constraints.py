@@ -31,8 +31,12 @@ class Constraint:
     """Linear constraints ``C d = R g`` on the coefficients of one basis.
 
     ``g`` holds the prescribed displacement of each constrained node
-    (``nodes``, component ``component``); ``weights`` are the row sums of
-    ``C`` so that the resultant of the multipliers ``λ`` is ``Σ λ · weights``.
+    (``nodes``, component ``component``: a number, or a direction ``n`` of a
+    skew condition); ``weights`` are such that the resultant of the
+    multipliers ``λ`` along the constrained direction is ``Σ λ · weights``:
+    the row sums of ``C`` for a component, ``C (n, n, ...)`` for a direction
+    (the reaction force ``Cᵀ λ`` projected on ``n``; the coefficients of a
+    vector basis are interleaved by component).
     """
 
     def __init__(self, C, R, nodes, coordinates, component):
@@ -41,7 +45,12 @@ class Constraint:
         self.nodes = nodes
         self.coordinates = coordinates
         self.component = component
-        self.weights = np.asarray(self.C.sum(axis=1)).ravel()
+        if isinstance(component, (int, np.integer)):
+            self.weights = np.asarray(self.C.sum(axis=1)).ravel()
+        else:
+            n = np.asarray(component, dtype=float)
+            n = n / np.linalg.norm(n)
+            self.weights = self.C @ np.tile(n, self.C.shape[1] // len(n))
 
     def __len__(self):
         return self.C.shape[0]

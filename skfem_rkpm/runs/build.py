@@ -20,6 +20,7 @@ from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FA
 from ..mechanics.problem import SolidProblem
 from ..mechanics.rigid_contact import RigidContact, ToolSideError
 from ..mechanics.tools import Arc, Platen, Polyline
+from ..meshes import plane_normal
 from ..solvers.newton import Prescribed
 from .memory import check_rk_memory
 from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from,
@@ -138,6 +139,9 @@ def build(scene, method=None, trust_geo=False):
                              f"{_named(boundaries, scene)}")
         for comp in components(section["fix"] or []):
             prescribed.append(Prescribed(boundary, comp, 0.0, section["method"]))
+        if section["symmetry"]:
+            prescribed.append(Prescribed(boundary, _symmetry_normal(mesh, boundary, name),
+                                         0.0, section["method"]))
         for comp, value in prescribed_components(section["displacement"]).items():
             prescribed.append(Prescribed(boundary, comp, _values(value, f"{name}"),
                                          section["method"]))
@@ -171,6 +175,18 @@ def _named(boundaries, scene):
         return (f"the file {scene['geometry']['file']} defines no named boundaries: give "
                 f"its boundary {what[0]} names with Physical {what[1]}(\"name\") = {{...}};")
     return "it has no named boundaries"
+
+
+def _symmetry_normal(mesh, boundary, name):
+    """The normal of a symmetry plane: a component number when it is a
+    coordinate axis (reaction ``xmin[0]``), the direction otherwise."""
+    try:
+        normal = plane_normal(mesh, boundary)
+    except ValueError as err:
+        raise SceneError(f"[{name}] symmetry: {err}; a symmetry plane must be flat") \
+            from None
+    axis = int(np.argmax(np.abs(normal)))
+    return axis if abs(normal[axis]) > 1.0 - 1e-12 else normal
 
 
 def _values(value, name):

@@ -94,7 +94,9 @@ def force_label(key, scene):
     for a tool, ``boundary bottom, reaction z`` for ``bottom[1]``."""
     names = _axis_names(scene)
     if key.endswith("]"):
-        boundary, component = key[:-1].split("[")
+        boundary, component = key[:-1].split("[", 1)
+        if not component.isdigit():  # a skew condition: along its direction n=(...)
+            return f"boundary {boundary}, reaction along {component}"
         return f"boundary {boundary}, reaction {names[int(component)]}"
     return f"{key}, force {names[-1]}"
 

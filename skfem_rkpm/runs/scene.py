@@ -189,6 +189,9 @@ SCHEMA = {
         "fix": Key("list[str]", doc='components held at 0 on this boundary, e.g. ["y"] for '
                                     'a symmetry plane y = const (3D: ["z"] for z = const), '
                                     '["x", "y"] to clamp'),
+        "symmetry": Key("bool", False,
+                        doc="a symmetry plane: zero displacement normal to this boundary, "
+                            "which must be flat (straight in 2D), at any angle"),
         "method": Key("str", "nodal", choices=("nodal", "weak"),
                       doc="prescribe nodal values (transformation method) or weakly"),
         "pressure": Key("any", check=_history,

@@ -32,12 +32,19 @@ class ProblemTooLarge(ValueError):
 
 
 def _volume(mesh):
-    """Measure of the mesh: cell areas in 2D (shoelace), the bounding box otherwise."""
+    """Measure of the mesh: cell areas in 2D (shoelace), cell volumes in 3D
+    (the Jacobian of the cell maps on a degree-2 Gauss rule: exact for
+    tetrahedra and parallelepipeds), the bounding box otherwise."""
     p = mesh.p
     if p.shape[0] == 2:
         x, y = p[0, mesh.t], p[1, mesh.t]  # (vertices per cell, cells), in order
         return float(np.sum(np.abs(np.sum(x * np.roll(y, -1, 0) - np.roll(x, -1, 0) * y,
                                           axis=0))) / 2)
+    if p.shape[0] == 3:
+        from skfem.quadrature import get_quadrature
+
+        X, W = get_quadrature(mesh.refdom, 2)
+        return float(np.sum(np.abs(mesh.mapping().detDF(X)) @ W))
     return float(np.prod(p.max(axis=1) - p.min(axis=1)))
 
 

@@ -8,6 +8,8 @@ the stresses of a thick cylinder vary fastest).
 
 Named boundaries: ``inner`` and ``outer`` (the circles) and, for a sector,
 ``start`` and ``end`` (the straight edges at the first and the last angle).
+:func:`ring_sector` extrudes a sector into hexahedra (a 3D ring between
+``bottom`` and ``top``).
 """
 
 import numpy as np
@@ -15,7 +17,7 @@ import numpy as np
 from ._mesh_cells import _cells, _make_mesh, _number, _positive
 from .meshes import _geometric_nodes
 
-__all__ = ["annulus"]
+__all__ = ["annulus", "ring_sector"]
 
 
 def annulus(r_inner, r_outer, nr, nt, angles=(0.0, 360.0), grading=1.0, kind="quad",
@@ -95,3 +97,40 @@ def annulus(r_inner, r_outer, nr, nt, angles=(0.0, 360.0), grading=1.0, kind="qu
     named = {name: np.flatnonzero(flag[facets[0]] & flag[facets[1]] & boundary)
              for name, flag in on.items()}
     return mesh.with_boundaries(named)
+
+
+def ring_sector(r_inner, r_outer, height, nr, nt, nz, angle=15.0):
+    """Hexahedral mesh of the ring sector ``r_inner ≤ r ≤ r_outer``,
+    ``0 ≤ θ ≤ angle`` (degrees from the x axis), ``0 ≤ z ≤ height``.
+
+    Vertices lie on the circles (facets on ``inner``/``outer`` are flat
+    quadrilaterals through four of them).  Named boundaries: ``inner``,
+    ``outer``, ``start`` (θ = 0, the plane y = 0), ``end`` (θ = angle),
+    ``bottom`` (z = 0) and ``top`` (z = height).
+
+    Returns
+    -------
+    skfem.MeshHex1
+    """
+    from skfem import MeshHex
+
+    r_inner, r_outer = _positive(r_inner, "r_inner"), _positive(r_outer, "r_outer")
+    if not r_outer > r_inner:
+        raise ValueError(f"the outer radius ({r_outer:g}) must exceed the inner radius "
+                         f"({r_inner:g})")
+    height, angle = _positive(height, "height"), _positive(angle, "angle")
+    if angle >= 180.0:
+        raise ValueError(f"a ring sector spans less than 180 degrees, not {angle:g}")
+    nr, nt, nz = _cells(nr, "nr"), _cells(nt, "nt"), _cells(nz, "nz")
+    r = np.linspace(r_inner, r_outer, nr + 1)
+    theta = np.linspace(0.0, np.radians(angle), nt + 1)
+    z = np.linspace(0.0, height, nz + 1)
+    box = MeshHex.init_tensor(r, theta, z)  # cells of the (r, θ, z) box
+    q = box.p
+    tol = 1e-9 * np.array([r_outer, np.radians(angle), height])
+    sides = {"inner": (0, r_inner), "outer": (0, r_outer), "start": (1, 0.0),
+             "end": (1, theta[-1]), "bottom": (2, 0.0), "top": (2, height)}
+    named = box.with_boundaries({name: (lambda x, k=k, v=v: np.abs(x[k] - v) < tol[k])
+                                 for name, (k, v) in sides.items()}).boundaries
+    p = np.array([q[0] * np.cos(q[1]), q[0] * np.sin(q[1]), q[2]])
+    return MeshHex(p, box.t, _boundaries=named)

@@ -19,10 +19,11 @@ from ..mechanics.loads import BoundaryLoads, FollowerPressure, History, Pressure
 from ..mechanics.friction import DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR
 from ..mechanics.problem import SolidProblem
 from ..mechanics.rigid_contact import RigidContact, ToolSideError
-from ..mechanics.tools import Arc, Platen, Polyline
+from ..mechanics.surface_contact import SurfaceContact
 from ..meshes import plane_normal
 from ..solvers.newton import Prescribed
 from .memory import check_rk_memory
+from .scene_tools import tool_from
 from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from,
                     prescribed_components, spacing_radius)
 from .scene_geometry import check_mesh, mesh_from
@@ -35,6 +36,9 @@ ELEMENTS = {"quad1": ElementQuad1, "quad2": ElementQuad2, "tri1": ElementTriP1,
 
 #: the linear elements (F-bar by default) and the elements of each kind of cell
 LINEAR_ELEMENTS = ("quad1", "tri1", "hex1", "tet1")
+#: the element of a scene without ``discretization.element``: linear on its cells
+LINEAR_OF = {"MeshQuad1": "quad1", "MeshTri1": "tri1", "MeshHex1": "hex1",
+             "MeshTet1": "tet1"}
 FITTING = {"MeshQuad1": "quad1 or quad2", "MeshTri1": "tri1 or tri2",
            "MeshHex1": "hex1 or hex2", "MeshTet1": "tet1 or tet2"}
 
@@ -117,13 +121,14 @@ def build(scene, method=None, trust_geo=False):
                                 if disc["support"] is not None else None),
                         support=disc["dilation"], stabilization=stabilization or 0.0)
     else:
-        element = ELEMENTS[disc["element"]]()
+        element = ELEMENTS[disc["element"] or LINEAR_OF.get(type(mesh).__name__, "quad1")]()
         if element.refdom != mesh.refdom:
             name = type(mesh).__name__
             raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
                              f"the {name} cells; use {FITTING.get(name, 'another')}")
         basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
-    locking = resolve_locking(disc["locking"], method, disc["element"], scene)
+    locking = resolve_locking(disc["locking"], method,
+                              disc["element"] or LINEAR_OF.get(type(mesh).__name__, "quad1"), scene)
     locking = None if locking == "none" else locking
     if method == "rkpm" and disc["integration"] in ("scni", "dni"):
         locking = None  # F-bar averages over a cell: one point per particle, nothing to do
@@ -199,32 +204,23 @@ def _values(value, name):
 
 
 def tool_from_scene(name, section, basis, problem, scene=None):
-    """A :class:`RigidContact` from a ``[tools.NAME]`` section of a scene.
+    """A :class:`RigidContact` (2D) or :class:`SurfaceContact` (3D) from a
+    ``[tools.NAME]`` section of a scene.
 
-    ``kind`` is ``"platen"`` (``point``, ``normal``), ``"polyline"``
-    (``points``, ``fillet``) or ``"arc"`` (``center``, ``radius``,
-    ``angles`` in degrees); ``motion``, ``friction``, ``slaves``,
+    The tool is :func:`skfem_rkpm.runs.scene_tools.tool_from`; ``friction``, ``slaves``,
     ``penalty``, ``penalty_factor`` (``factor``), ``collocation``,
     ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.  With
     ``force`` the tool is driven by its push along ``direction`` (default
     the platen's normal): a :class:`ForceDrivenContact`.
     """
-    kind = section.get("kind", "platen")
-    motion = section.get("motion") or (0.0, 0.0)
-    if kind == "platen":
-        tool = Platen(section["point"], section["normal"], motion, name)
-    elif kind == "polyline":
-        tool = Polyline(section["points"], section.get("fillet") or 0.0, motion=motion,
-                        name=name)
-    elif kind == "arc":
-        tool = Arc(section["center"], section["radius"], section["angles"], motion, name)
-    else:
-        raise ValueError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
+    dim = basis.mesh.dim()
+    tool = tool_from(name, section, dim, (scene or {}).get("_base"))
     if problem.basis is not basis:
         raise ValueError("the basis must be the problem's basis")
     factor = section.get("penalty_factor")
     try:
-        contact = RigidContact(problem, tool, section.get("slaves"),
+        contact = (SurfaceContact if dim == 3 else RigidContact)(
+                               problem, tool, section.get("slaves"),
                                section.get("friction", 0.0),
                                section.get("collocation") or "nodal", section.get("penalty"),
                                factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,

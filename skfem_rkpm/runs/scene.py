@@ -13,33 +13,21 @@ drives, exactly as a script would.
 import math
 import re
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..solvers.backend import BACKENDS
-from .scene_geometry import check_components, check_geometry, mesh_from
-from .scene_values import (COMPONENTS, HISTORY, SceneError, _angle_span, _annulus_radii,
-                           _cell_counts, _flow_curve, _friction, _grading, _history,
-                           _increasing_pair, _named_points, _non_negative, _not_empty, _pair,
-                           _poisson, _polyline_points, _positive, _quadrature, _segments,
+from .scene_geometry import check_components, check_geometry, mesh_from, model_dimension
+from .scene_tools import TOOL_SCHEMA, check_tool
+from .scene_values import (COMPONENTS, HISTORY, Key, SceneError, _angle_span, _annulus_radii,
+                           _cell_counts, _flow_curve, _grading, _history,
+                           _increasing_pair, _named_points, _non_negative, _pair,
+                           _poisson, _positive, _quadrature, _segments,
                            _triple, _vector_history)
 
 __all__ = ["SceneError", "SCHEMA", "load_scene", "parse_scene", "apply_setting",
            "schema_markdown", "prescribed_components", "mesh_from"]
-
-
-@dataclass(frozen=True)
-class Key:
-    """One key of the schema: its type, default and meaning."""
-
-    kind: str  # "str", "float", "int", "bool", "list[float]", "list[int]", "list[str]", "any"
-    default: object = None
-    required: bool = False
-    choices: tuple = ()
-    doc: str = ""
-    check: object = None  # callable value -> error text or None
 
 
 #: α of the modified SCNI stabilization when a scene does not give one
@@ -111,11 +99,12 @@ SCHEMA = {
                                  f"(default {DEFAULT_STABILIZATION}; 0: plain SCNI)"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
-        "element": Key("str", "quad1",
+        "element": Key("str", None,
                        choices=("quad1", "quad2", "tri1", "tri2", "hex1", "hex2", "tet1",
                                 "tet2"),
-                       doc="fem: element; it must fit the cells (hex1, hex2 on hexahedra, "
-                           "tet1, tet2 on tetrahedra)"),
+                       doc="fem: element (default: the linear one of the cells); it must "
+                           "fit the cells (hex1, hex2 on hexahedra, tet1, tet2 on "
+                           "tetrahedra)"),
         "locking": Key("str", "auto", choices=("none", "fbar", "auto"),
                        doc="volumetric locking control; auto: F-bar for RKPM and linear "
                            "FEM elements, none for quadratic elements and for RKPM when "
@@ -146,45 +135,7 @@ SCHEMA = {
                              doc="table: beyond the last point, continue the last "
                                  "segment's slope or keep the last stress"),
     },
-    "tools.*": {
-        "kind": Key("str", "platen", choices=("platen", "polyline", "arc"),
-                    doc="flat platen (infinite line), polyline of segments, circular arc"),
-        "point": Key("list[float]", check=_pair, doc="platen: a point of the surface"),
-        "normal": Key("list[float]", check=_pair, doc="platen: normal pointing to the body"),
-        "points": Key("any", check=_polyline_points,
-                      doc="polyline: [[x, y], ...], body on the left"),
-        "fillet": Key("float", 0.0, check=_non_negative, doc="polyline: corner radius"),
-        "center": Key("list[float]", check=_pair, doc="arc: center"),
-        "radius": Key("float", check=_positive, doc="arc: radius"),
-        "angles": Key("list[float]", check=_pair, doc="arc: [start, end] in degrees"),
-        "motion": Key("list[float]", [0.0, 0.0], check=_pair,
-                      doc="displacement of the tool at the end of the run"),
-        "force": Key("any", check=_history,
-                     doc="force-driven tool: its push on the body along direction "
-                         "follows this force history (" + HISTORY + "); the tool travels "
-                         "as needed, on top of motion"),
-        "direction": Key("list[float]", check=_pair,
-                         doc="force-driven tool: direction of travel and push (default: "
-                             "a platen's normal)"),
-        "friction": Key("any", 0.0, check=_friction, doc='Coulomb μ, or "stick"'),
-        "slaves": Key("list[str]", check=_not_empty,
-                      doc="boundaries whose particles may touch the tool "
-                          "(default: the whole boundary)"),
-        "penalty": Key("float", check=_positive,
-                       doc="normal penalty per unit area (default from E and the spacing)"),
-        "collocation": Key("str", "nodal", choices=("nodal", "quadrature"),
-                           doc="contact at the boundary particles (paper) or at boundary "
-                               "quadrature points"),
-        "enforcement": Key("str", "penalty", choices=("penalty", "augmented"),
-                           doc="the paper's penalty law, or the augmented Lagrangian "
-                               "(penetration and stick slip to `tolerance`; stick = μ ∞)"),
-        "penalty_factor": Key("float", check=_positive,
-                              doc="normal penalty as factor · E / spacing (default 1000); "
-                                  "ignored when `penalty` is given"),
-        "tolerance": Key("float", 1e-6, check=_positive,
-                         doc="augmented: penetration and stick slip allowed, as a fraction "
-                             "of the particle spacing"),
-    },
+    "tools.*": TOOL_SCHEMA,
     "boundary.*": {
         "fix": Key("list[str]", doc='components held at 0 on this boundary, e.g. ["y"] for '
                                     'a symmetry plane y = const (3D: ["z"] for z = const), '
@@ -315,9 +266,9 @@ def parse_scene(text, source="<scene>", base=None):
             if name in REQUIRED_SECTIONS:
                 raise SceneError(f"{source}: missing required section [{name}]")
             scene[name] = _section(name, {}, fail)
+    scene["_base"] = str(base) if base is not None else None
     _check_combinations(scene, fail)
     scene["_source"] = source
-    scene["_base"] = str(base) if base is not None else None
     scene["_text"] = text
     return scene
 
@@ -374,18 +325,8 @@ def _check_combinations(scene, fail):
                 and section["pressure"] is None:
             fail(f"{name}.follower", "applies to a pressure; give 'pressure'")
         if name.startswith("tools."):
-            needs = {"platen": ("point", "normal"), "polyline": ("points",),
-                     "arc": ("center", "radius", "angles")}[section["kind"]]
-            for key in needs:
-                if section[key] is None:
-                    fail(name, f"a {section['kind']} needs {key!r}")
-            if section["force"] is not None and section["direction"] is None \
-                    and section["kind"] != "platen":
-                fail(f"{name}.force", f"a force-driven {section['kind']} needs 'direction'")
-            try:
-                tool_from(name.split(".", 1)[1], section)
-            except ValueError as err:
-                fail(name, str(err))
+            check_tool(name, section, model_dimension(scene["model"]["type"]), fail,
+                       scene.get("_base"))
     try:
         material_from(material)
     except ValueError as err:
@@ -528,22 +469,6 @@ def material_from(section):
     else:
         hardening = perfect(section["yield"])
     return J2Material(section["E"], section["nu"], hardening)
-
-
-def tool_from(name, section):
-    """The rigid :class:`~skfem_rkpm.mechanics.tools.Tool` of a
-    ``[tools.NAME]`` section (its geometry and motion)."""
-    from ..mechanics.tools import Arc, Platen, Polyline
-
-    kind, motion = section.get("kind", "platen"), section.get("motion") or (0.0, 0.0)
-    if kind == "platen":
-        return Platen(section["point"], section["normal"], motion, name)
-    if kind == "polyline":
-        return Polyline(section["points"], section.get("fillet") or 0.0, motion=motion,
-                        name=name)
-    if kind == "arc":
-        return Arc(section["center"], section["radius"], section["angles"], motion, name)
-    raise SceneError(f"tools.{name}.kind must be platen, polyline or arc, not {kind!r}")
 
 
 def spacing_radius(mesh, section):

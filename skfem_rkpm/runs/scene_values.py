@@ -4,12 +4,26 @@ schema of :mod:`skfem_rkpm.runs.scene`, which raises :class:`SceneError`.
 """
 
 import math
+from dataclasses import dataclass
 
 __all__ = ["SceneError", "COMPONENTS", "HISTORY", "MAX_QUADRATURE"]
 
 
 class SceneError(ValueError):
     """A scene file is wrong; the message names the key and the line."""
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the schema: its type, default and meaning."""
+
+    kind: str  # "str", "float", "int", "bool", "list[float]", "list[int]", "list[str]", "any"
+    default: object = None
+    required: bool = False
+    choices: tuple = ()
+    doc: str = ""
+    check: object = None  # callable value -> error text or None
+
 
 
 def _positive(v):

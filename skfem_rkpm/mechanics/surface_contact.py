@@ -232,8 +232,9 @@ class SurfaceContact(RigidContact):
         return max(penetration, slip) / (self.tolerance * self.points.spacing)
 
     def gauges(self, t):
-        """Tool position and penetration, for output tables."""
-        dx = self.tool.translation(t)
+        """Tool translation (its ``motion``; a rotation is not included) and
+        penetration, for output tables."""
+        dx = self.tool.displacement(t)
         out = {f"{self.name} d{c}": float(v) for c, v in zip("xyz", dx)}
         out[f"{self.name} penetration"] = self.penetration()
         return out

@@ -200,6 +200,11 @@ class Surface:
         R = axis_rotation(axis, np.radians(degrees))
         return R, point - R @ point + shift
 
+    def displacement(self, t):
+        """The prescribed translation ``motion(t)`` (what a gauge reports;
+        without the swing of a rotation)."""
+        return self._shift(t)
+
     def translation(self, t):
         """``b(t)``: the position of the body-frame origin, i.e. its
         displacement ``(dx, dy, dz)`` from the world origin (the motion, plus

@@ -46,7 +46,8 @@ SCHEMA = {
         "force_unit": Key("str", "N", doc="unit of forces, for figures and reports"),
     },
     "geometry": {
-        "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "box", "gmsh"),
+        "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "box", "ring_sector",
+                                                 "gmsh"),
                     doc="rectangle section with divisions, ring or ring sector (annulus), "
                         "3D box, or a gmsh .geo/.msh file (2D or 3D)"),
         "x": Key("list[float]", check=_increasing_pair, doc="rectangle: [xmin, xmax]"),
@@ -54,7 +55,7 @@ SCHEMA = {
         "divisions": Key("list[int]", check=_cell_counts,
                          doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) "
                              "vertices; annulus: cells [across the wall, around]; box: "
-                             "cells [nx, ny, nz]"),
+                             "cells [nx, ny, nz]; ring_sector: [across, around, height]"),
         "cells": Key("str", choices=("quad", "tri", "hex", "tet"),
                      doc="cell type; rectangle, annulus: quad (default) or tri; box: hex "
                          "(default) or tet"),
@@ -62,14 +63,18 @@ SCHEMA = {
                        doc="rectangle: largest/smallest cell ratio [in x, in y] (1 = uniform); "
                            "annulus: [across the wall (smallest at the inner radius), 1]"),
         "radii": Key("list[float]", check=_annulus_radii,
-                     doc="annulus: [inner, outer] radius; boundaries inner, outer"),
+                     doc="annulus, ring_sector: [inner, outer] radius; boundaries inner, "
+                         "outer"),
         "angles": Key("list[float]", [0.0, 360.0], check=_angle_span,
                       doc="annulus: [start, end] in degrees from the x axis; a sector "
-                          "(span < 360) also has the straight boundaries start and end"),
+                          "(span < 360) also has the straight boundaries start and end; "
+                          "ring_sector (3D, hexahedra): [0, angle], boundaries start (y = 0), "
+                          "end, bottom (z = 0) and top (z = lz)"),
         "center": Key("list[float]", [0.0, 0.0], check=_pair, doc="annulus: center"),
         "lx": Key("float", check=_positive, doc="box: edge length along x"),
         "ly": Key("float", check=_positive, doc="box: edge length along y"),
-        "lz": Key("float", check=_positive, doc="box: edge length along z"),
+        "lz": Key("float", check=_positive, doc="box: edge length along z; ring_sector: "
+                                                "height"),
         "origin": Key("list[float]", [0.0, 0.0, 0.0], check=_triple,
                       doc="box: the corner with the smallest coordinates [x, y, z]; "
                           "boundaries xmin, xmax, ymin, ymax, zmin, zmax"),

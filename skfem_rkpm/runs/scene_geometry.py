@@ -21,14 +21,15 @@ __all__ = ["DIMENSIONS", "model_dimension", "check_geometry", "check_components"
            "check_mesh", "mesh_from"]
 
 #: the dimension of each kind of geometry (a gmsh file: that of its cells)
-DIMENSIONS = {"rectangle": 2, "annulus": 2, "box": 3}
+DIMENSIONS = {"rectangle": 2, "annulus": 2, "box": 3, "ring_sector": 3}
 
 #: the cell types of each dimension, the default first
 CELLS = {2: ("quad", "tri"), 3: ("hex", "tet")}
 
 #: what each kind of geometry needs
 NEEDS = {"rectangle": ("x", "y", "divisions"), "annulus": ("radii", "divisions"),
-         "box": ("lx", "ly", "lz", "divisions"), "gmsh": ("file",)}
+         "box": ("lx", "ly", "lz", "divisions"), "ring_sector": ("radii", "lz", "divisions"),
+         "gmsh": ("file",)}
 
 
 def model_dimension(model_type):
@@ -71,6 +72,12 @@ def check_geometry(scene, fail):
     if len(geometry["divisions"]) != dim:
         fail("geometry.divisions", f"a {kind} needs {dim} values "
                                    + ("[nx, ny, nz]" if dim == 3 else "[nx, ny]"))
+    if kind == "ring_sector":
+        if geometry["cells"] != "hex":
+            fail("geometry.cells", "a ring_sector has hex cells only")
+        if geometry["angles"][0] != 0.0 or geometry["angles"][1] >= 180.0:
+            fail("geometry.angles", "a ring_sector spans [0, angle] with angle < 180 "
+                                    f"degrees, not {geometry['angles']}")
     if kind == "annulus":
         if geometry["grading"] is not None and geometry["grading"][1] != 1.0:
             fail("geometry.grading", "an annulus is graded across the wall only; give "
@@ -175,6 +182,14 @@ def mesh_from(section, base=None, trust_geo=False):
             return annulus(*section["radii"], nr, nt, section.get("angles") or (0.0, 360.0),
                            grading, section.get("cells") or "quad",
                            section.get("center") or (0.0, 0.0))
+        except ValueError as err:
+            raise SceneError(f"geometry: {err}") from err
+    if section["kind"] == "ring_sector":
+        from ..annulus import ring_sector
+
+        try:
+            return ring_sector(*section["radii"], section["lz"], *section["divisions"],
+                               angle=section["angles"][1])
         except ValueError as err:
             raise SceneError(f"geometry: {err}") from err
     if section["kind"] == "gmsh":

@@ -50,9 +50,9 @@ def plot_deformed(ax, problem, d, title="", vmax=None, show_cells=True, scene=No
 
 def _moving_tools(scene):
     """``{name: motion}`` of the tools with a prescribed motion."""
-    return {name.split(".", 1)[1]: np.asarray(section["motion"] or (0.0, 0.0), float)
+    return {name.split(".", 1)[1]: np.asarray(section["motion"], float)
             for name, section in scene.items()
-            if name.startswith("tools.") and np.any(section["motion"] or (0.0, 0.0))}
+            if name.startswith("tools.") and section["motion"] and np.any(section["motion"])}
 
 
 def height_reduction(sim, t):
@@ -66,7 +66,19 @@ def height_reduction(sim, t):
     direction = first / np.linalg.norm(first)
     height = np.ptp(direction @ sim.mesh.p)
     travel = sum(abs(float(motion @ direction)) for motion in moving.values())
+    if travel >= height:  # the tools pass through the part's height: a punch, not a press
+        return None
     return 100.0 * np.asarray(t, float) * travel / height
+
+
+def tool_travel(sim, t):
+    """``(name, travel)``: the first moving tool and its distance travelled
+    at load factors ``t`` (length units); None without a moving tool."""
+    moving = _moving_tools(sim.scene)
+    if not moving:
+        return None
+    name, motion = next(iter(moving.items()))
+    return name, np.asarray(t, float) * float(np.linalg.norm(motion))
 
 
 def inner_diameter_change(sim, gauges, point="inner_mid"):
@@ -136,8 +148,16 @@ def run_figures(sim, result):
     scene, history = sim.scene, result.history
     t = np.array([r.t for r in history])
     reduction = height_reduction(sim, t)
-    progress = (f"height reduction {reduction[-1]:.3g} %" if reduction is not None
-                and len(t) else f"t = {t[-1] if len(t) else 0:.3g}")
+    travel = tool_travel(sim, t)
+    unit = scene["model"]["length_unit"]
+    if reduction is not None and len(t):
+        progress, x, xlabel = (f"height reduction {reduction[-1]:.3g} %", reduction,
+                               "height reduction (%)")
+    elif travel is not None and len(t):
+        progress, x, xlabel = (f"{travel[0]} travel {travel[1][-1]:.3g} {unit}", travel[1],
+                               f"{travel[0]} travel ({unit})")
+    else:
+        progress, x, xlabel = f"t = {t[-1] if len(t) else 0:.3g}", None, None
     title = f"{_run_title(sim)}\n{progress}"
     if sim.mesh.dim() == 3:
         figures.update(figures_3d(sim, result, title))
@@ -148,9 +168,9 @@ def run_figures(sim, result):
     if keys:
         fig, ax = plt.subplots(figsize=(6.5, 4.5))
         for key in keys:
-            plot_history(ax, history, key, force_label(key, scene), x=reduction)
-        if reduction is not None:
-            ax.set_xlabel("height reduction (%)")
+            plot_history(ax, history, key, force_label(key, scene), x=x)
+        if xlabel is not None:
+            ax.set_xlabel(xlabel)
         ax.set_ylabel(force_axis_label(scene))
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
         ax.set_title(_run_title(sim))

@@ -112,8 +112,9 @@ SCHEMA = {
                            "tetrahedra)"),
         "locking": Key("str", "auto", choices=("none", "fbar", "auto"),
                        doc="volumetric locking control; auto: F-bar for RKPM and linear "
-                           "FEM elements, none for quadratic elements and for RKPM when "
-                           "a tool slides with friction (measured: docs/plasticity.md); "
+                           "FEM elements, none for quadratic elements and for 2D RKPM when "
+                           "a tool slides with friction (measured: docs/plasticity.md, "
+                           "docs/forming_3d.md); "
                            "ignored with nodal integration"),
     },
     "material": {

@@ -1,0 +1,129 @@
+"""Whole-run cost and results of the 3D forming scenes, RKPM against FEM.
+
+Every case runs ``skfem-rkpm run SCENE`` in a fresh process and reports:
+unknowns and Gauss points, the load steps, the Newton iterations of all
+attempts (failed ones and cut-backs included), the CPU time of the whole
+process (user + system: imports, mesh, basis, every attempt, output), the
+CPU time per iteration (whole process over all iterations: an upper
+bound), the peak memory (maximum resident set of the process), and the
+scene's result: the inner-diameter change and full-ring force of the ring
+sector, the force and corner bulge of the billet, the punch force and the
+thinning at the pole of the stretched sheet.  ``--repeat N`` runs each case
+N times and reports the median CPU time.
+
+Run:  python benchmarks/forming_3d.py                 (~1 hour, one core per case)
+      python benchmarks/forming_3d.py --quick         (coarse meshes, ~1 minute)
+      python benchmarks/forming_3d.py --cases billet
+"""
+
+import argparse
+import csv
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+CASES = {
+    # name: (scene, method, settings)
+    "ring_sector rkpm": ("ring_sector", "rkpm", []),
+    "ring_sector fem": ("ring_sector", "fem", []),
+    "billet_3d rkpm": ("billet_3d", "rkpm", []),
+    "billet_3d fem": ("billet_3d", "fem", []),
+    "stretch_3d rkpm": ("stretch_3d", "rkpm", []),
+    "stretch_3d fem": ("stretch_3d", "fem", []),
+}
+
+QUICK = {"ring_sector": ["geometry.divisions=[5, 2, 4]", "steps.count=20"],
+         "billet_3d": ["geometry.divisions=[4, 2, 3]", "steps.count=20"],
+         "stretch_3d": ["geometry.divisions=[8, 8, 1]", "steps.count=10"]}
+
+#: runs a command and prints the CPU seconds and peak memory (kB) of it
+_MEASURE = ("import resource, subprocess, sys; "
+            "code = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, "
+            "stderr=subprocess.DEVNULL).returncode; "
+            "r = resource.getrusage(resource.RUSAGE_CHILDREN); "
+            "print(r.ru_utime + r.ru_stime, r.ru_maxrss, code)")
+
+
+def run_case(scene, method, settings, folder):
+    """CPU seconds, peak memory (MB) and exit status of one whole run."""
+    command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", scene, "--quiet",
+               "--method", method, "--out", str(folder), "--set", "output.fields=false"]
+    for setting in settings:
+        command += ["--set", setting]
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
+    out = subprocess.run([sys.executable, "-c", _MEASURE, *command], env=env,
+                         capture_output=True, text=True, check=True).stdout.split()
+    return float(out[0]), float(out[1]) / 1024.0, int(out[2])
+
+
+def result(scene, last, status):
+    """The scene's own numbers from the last row of its history."""
+    if scene == "ring_sector":
+        change = 100.0 * (float(last["inner_mid x"]) / 30.0 - 1.0)
+        return f"ID {change:+.2f} %, F {-24e-3 * float(last['reaction platen z']):.0f} kN"
+    if scene == "billet_3d":
+        folded = "; cells folded" if "inverted" in status else ""
+        return (f"F {-4e-3 * float(last['reaction platen z']):.1f} kN, corner "
+                f"({float(last['corner x']):.2f}, {float(last['corner y']):.2f}) mm{folded}")
+    if scene == "stretch_3d":
+        pole = float(last["pole z"]) - (15.0 * float(last["t"]) - 1.0)
+        return (f"F {4e-3 * float(last['reaction punch z']):.2f} kN, pole thickness "
+                f"{pole:.3f} mm")
+    return ""
+
+
+def summary(folder, scene):
+    rows = list(csv.DictReader(open(Path(folder) / "history.csv")))
+    status = (Path(folder) / "status.txt").read_text().strip()
+    return {"t": float(rows[-1]["t"]), "steps": len(rows),
+            "all iterations": sum(int(r["all iterations"]) for r in rows),
+            "cut-backs": sum(int(r["cutbacks"]) for r in rows),
+            "result": result(scene, rows[-1], status)}
+
+
+def size(scene, method, settings):
+    """Unknowns and Gauss points of a case (built in this process)."""
+    from skfem_rkpm.runs.build import build
+    from skfem_rkpm.runs.scene import builtin_scenes, load_scene
+
+    sim = build(load_scene(builtin_scenes()[scene], settings), method)
+    return sim.problem.N, sim.problem.assembler.layout.dx.size
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="*", default=[],
+                        help="run only cases whose name contains one of these words")
+    parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--quick", action="store_true", help="the coarse meshes")
+    args = parser.parse_args()
+    names = [n for n in CASES if not args.cases or any(w in n for w in args.cases)]
+    print(f"load average at start: {os.getloadavg()[0]:.1f}")
+    print("| case | unknowns | Gauss points | status | t | steps | all iterations | "
+          "cut-backs | CPU s (median) | CPU s / iteration | peak MB | result |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name in names:
+        scene, method, settings = CASES[name]
+        settings = settings + (QUICK[scene] if args.quick else [])
+        unknowns, points = size(scene, method, settings)
+        times, peaks = [], []
+        with tempfile.TemporaryDirectory() as tmp:
+            for k in range(args.repeat):
+                seconds, peak, code = run_case(scene, method, settings, Path(tmp) / f"r{k}")
+                times.append(seconds)
+                peaks.append(peak)
+            s = summary(Path(tmp) / "r0", scene)
+        cpu = statistics.median(times)
+        status = "completed" if code == 0 else f"stopped ({code})"
+        print(f"| {name} | {unknowns} | {points} | {status} | {s['t']:.3f} | {s['steps']} | "
+              f"{s['all iterations']} | {s['cut-backs']} | {cpu:.1f} | "
+              f"{cpu / max(s['all iterations'], 1):.2f} | {max(peaks):.0f} | "
+              f"{s['result']} |", flush=True)
+    print(f"load average at end: {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -80,3 +80,29 @@ def test_rkpm_without_fbar_upsets_the_billet_to_half_its_height(tmp_path):
         ratio = 15.0 / (15.0 - 7.5 * float(row["t"]))  # H0 / H
         if ratio > 1.01:  # fully plastic
             assert -float(row["reaction platen z"]) > 100.0 * 200.0 * ratio
+
+
+@pytest.mark.parametrize("method", ["rkpm", "fem"])
+def test_stretched_sheet_is_in_equilibrium_and_thins_at_the_pole(tmp_path, method):
+    """The square sheet over the ball punch, coarse (8 x 8 x 1 cells, 10
+    steps to 15 mm): the punch force is carried by the clamped edges (the
+    symmetry planes carry no force along z), so their reactions balance it
+    to the Newton tolerance (1e-6 of the largest force of the iteration,
+    which may be an internal one: measured up to 2e-6 of the punch force,
+    asserted 1e-5),
+    likewise in x; the force grows with the travel; the sheet, stretched
+    over the punch, is thinner at the pole than its 1 mm."""
+    rows, status = run(tmp_path, "stretch_3d", method,
+                       ["geometry.divisions=[8, 8, 1]", "steps.count=10"])
+    assert status.strip() == "completed" and float(rows[-1]["t"]) == 1.0
+    punch = np.array([float(r["reaction punch z"]) for r in rows])
+    assert np.all(np.diff(punch) > 0) and punch[0] > 0
+    for row in rows:
+        for axis, k in (("z", 2), ("x", 0)):
+            total = (float(row[f"reaction punch {axis}"]) + float(row[f"reaction xmax[{k}]"])
+                     + float(row[f"reaction ymax[{k}]"])
+                     + (float(row["reaction xmin[0]"]) if k == 0 else 0.0))
+            assert abs(total) < 1e-5 * float(row["reaction punch z"])
+    # the lower face at the pole follows the punch (z = 15 t - 1 at its top)
+    thickness = float(rows[-1]["pole z"]) - (15.0 - 1.0)
+    assert 0.5 < thickness < 0.98

@@ -5,6 +5,7 @@ from .forms import CorrectedTrialWarning, SlowAssemblyWarning, asm
 from .approximation.basis import RKBasis, RKFacetBasis
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
+from .solvers.idioms import coefficients, condense, eigen, enforce
 from .approximation.kernels import cubic_spline, quartic_spline
 from .meshes import local_spacing
 from .approximation.shape import ShapeTable, SingularMomentError, rk_shape_functions
@@ -20,7 +21,11 @@ __all__ = [
     "SingularMomentError",
     "SlowAssemblyWarning",
     "asm",
+    "coefficients",
+    "condense",
     "cubic_spline",
+    "eigen",
+    "enforce",
     "isotropic_tangent",
     "layout",
     "linear_solve",

@@ -37,16 +37,27 @@ def linear_solve(A, b, solver="auto"):
     return make_solver(solver).factor(A).solve(b)
 
 
-def _prescribed_values(D, x, N):
+def _prescribed_values(D, x, N, columns=None):
+    """``g`` of shape (len(D),), or (len(D), columns) for several right-hand sides."""
+    shape = (len(D),) if columns is None else (len(D), columns)
     if x is None:
-        return np.zeros(len(D))
+        return np.zeros(shape)
     x = np.asarray(x, dtype=float)
-    if x.shape == (N,):
-        return x[D]
-    if x.shape == (len(D),) or x.ndim == 0:
-        return np.broadcast_to(x, (len(D),)).astype(float)
-    raise ValueError(f"prescribed values have shape {x.shape}; give one value per "
-                     f"constrained dof ({len(D)}) or a full vector ({N})")
+    if x.shape[:1] == (N,) and x.ndim <= len(shape):
+        x = x[D]
+    elif not (x.shape[:1] == (len(D),) or x.ndim == 0):
+        raise ValueError(f"prescribed values have shape {x.shape}; give one value per "
+                         f"constrained dof ({len(D)}) or a full vector ({N})"
+                         + ("" if columns is None else f", with {columns} columns or one"))
+    if x.ndim == 2 and columns is None:
+        raise ValueError(f"prescribed values have shape {x.shape} for one right-hand "
+                         f"side; give a vector")
+    try:
+        return np.array(np.broadcast_to(x if x.ndim != 1 or columns is None
+                                        else x[:, None], shape), dtype=float)
+    except ValueError:
+        raise ValueError(f"prescribed values have shape {x.shape}, the right-hand sides "
+                         f"{columns} columns: give one column or {columns}") from None
 
 
 def solve(K, f, basis, D=None, x=None, return_reactions=False):
@@ -56,26 +67,32 @@ def solve(K, f, basis, D=None, x=None, return_reactions=False):
     ----------
     K : sparse matrix, shape (N, N)
         Stiffness in generalized coordinates (as assembled on the basis).
-    f : ndarray, shape (N,)
-        Load vector in generalized coordinates.
+    f : ndarray, shape (N,) or (N, k)
+        Load vector in generalized coordinates, or ``k`` of them (one
+        factorization serves all).
     basis : RKBasis or skfem basis
         Supplies the transformation Λᵀ.
     D : array of int, optional
         Dofs whose nodal values are prescribed (``basis.get_dofs(...)``).
     x : ndarray, optional
         The prescribed nodal values: a full vector (N,) read at ``D``, one
-        value per entry of ``D``, or a scalar.  Default zero.
+        value per entry of ``D``, or a scalar.  Default zero.  With ``k``
+        right-hand sides also (N, k) or (len(D), k): one column per load.
     return_reactions : bool
         Also return the nodal reactions ``λ`` on ``D``.
 
     Returns
     -------
-    d : ndarray, shape (N,)
+    d : ndarray, shape (N,) or (N, k)
         Generalized coefficients; ``basis.nodal_values(d)[D]`` equals ``x``.
     """
     N = K.shape[0]
+    f = np.asarray(f, dtype=float)
+    if f.ndim not in (1, 2) or f.shape[0] != N:
+        raise ValueError(f"the load has shape {f.shape}; give ({N},) or ({N}, k) for "
+                         f"k right-hand sides")
     D = np.zeros(0, dtype=np.int64) if D is None else np.asarray(D, dtype=np.int64)
-    g = _prescribed_values(D, x, N)
+    g = _prescribed_values(D, x, N, None if f.ndim == 1 else f.shape[1])
     d, reactions = solve_constrained(K, f, transformation(basis)[D], g)
     return (d, reactions) if return_reactions else d
 
@@ -120,7 +137,7 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-13, maxiter=200):
     m = C.shape[0]
     if m == 0:
         _factor(solver, K, spd=True)
-        return solver.solve(f), np.zeros(0)
+        return solver.solve(f), np.zeros((0,) + np.shape(f)[1:])
     C = sp.csr_matrix(C)
     backend = solver
     if isinstance(solver, Auto):
@@ -139,6 +156,11 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-13, maxiter=200):
             backend = solver.backend("superlu")  # auto: the tangent is indefinite
         else:
             solver.A = Krho
+            if np.ndim(f) == 2:  # one Schur complement iteration per load
+                pairs = [_augmented_lagrangian(backend, Krho, rho, f[:, j], C, g[:, j],
+                                               rtol, maxiter) for j in range(f.shape[1])]
+                return (np.column_stack([p[0] for p in pairs]),
+                        np.column_stack([p[1] for p in pairs]))
             return _augmented_lagrangian(backend, Krho, rho, f, C, g, rtol, maxiter)
     A = _canonical(sp.bmat([[K, C.T], [C, None]]))
     backend.factor(A)

@@ -295,3 +295,26 @@ def test_clear_errors(call, message):
     K = stiffness(basis)
     with pytest.raises(ValueError, match=message):
         call(K, basis)
+
+
+def test_enforce_eigenproblem_matches_eigen():
+    """enforce on (K, M): rows D of M are zero, so the finite eigenpairs of
+    the enforced pencil (scikit-fem's eigs about σ = 1) are the constrained
+    ones: the same eigenvalues as eigen() to 1e-12, modes zero at D."""
+    basis = RKBasis(square(8), integration="vci_symmetric")
+    K, M, D = asm(laplace, basis), asm(mass, basis), basis.get_dofs()
+    reference, _ = eigen(K, M, basis, D=D, k=4)
+    w, d = solve(*enforce(K, M, D=D, basis=basis),
+                 solver=skfem.solver_eigen_scipy(k=4, sigma=1.0))
+    np.testing.assert_allclose(np.sort(w.real), reference, rtol=1e-12)
+    u = basis.nodal_values(d.real)
+    assert np.all(np.abs(u[D]).max(axis=0) < 1e-12 * np.abs(u).max(axis=0))
+
+
+def test_large_elimination_refused_with_the_alternative(monkeypatch):
+    import skfem_rkpm.solvers.idioms as idioms
+
+    basis = RKBasis(square(4))
+    monkeypatch.setattr(idioms, "DENSE_LIMIT", 10)
+    with pytest.raises(MemoryError, match=r"skfem_rkpm.solve\(K, f, basis, D=D"):
+        condense(stiffness(basis), np.ones(basis.N), D=basis.get_dofs(), basis=basis)

@@ -24,10 +24,11 @@ minimizes the same energy as the saddle-point solve of
 support of ``D``: up to ``len(D)`` rows by that many columns.  On the
 whole boundary of a 2D square with ``n × n`` cells (``len(D) = 4n``) it has
 about ``2n`` entries per constrained dof (7935 for n = 32, 32255 for
-n = 64), and the reduced matrix about twice the entries of ``K`` (measured
-in docs/rk_basis.md, ``benchmarks/dirichlet_idioms.py``).  scikit-fem's :func:`skfem.solve` applies ``Z``
-itself: ``condense`` returns ``I = (dofs, expand)``, the form its
-``solve_linear`` and ``solve_eigen`` accept for a change of variables.
+n = 64), and the reduced matrix about twice the entries of ``K``
+(docs/rk_basis.md, ``benchmarks/dirichlet_idioms.py``).  scikit-fem's
+:func:`skfem.solve` applies ``Z`` itself: ``condense`` returns
+``I = (dofs, expand)``, the form its ``solve_linear`` and ``solve_eigen``
+accept for a change of variables.
 """
 
 import numpy as np

@@ -330,3 +330,16 @@ def test_eigen_on_the_default_nonsymmetric_vci():
     w, d = eigen(K, M, basis, D=basis.get_dofs(), k=4)
     assert np.all(np.abs(w / EIGENVALUES - 1) < FEM_ERROR / 8**2 / 10)
     assert np.abs(basis.nodal_values(d)[basis.get_dofs()]).max() < 1e-12 * np.abs(d).max()
+
+
+def test_singular_constrained_block_is_reported():
+    """Λᵀ[D][:, D] singular (two constrained particles with the same shape
+    function values at both): a named error pointing to the saddle point."""
+    class TwoAlike:
+        N = 3
+        nodal_matrix = sp.csr_matrix(np.array([[0.5, 0.5, 0.0],
+                                               [0.5, 0.5, 0.0],
+                                               [0.0, 0.2, 0.8]]))
+
+    with pytest.raises(np.linalg.LinAlgError, match="singular.*skfem_rkpm.solve"):
+        condense(sp.identity(3, format="csr"), np.ones(3), D=[0, 1], basis=TwoAlike())

@@ -5,7 +5,7 @@ from .forms import CorrectedTrialWarning, SlowAssemblyWarning, asm
 from .approximation.basis import RKBasis, RKFacetBasis
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
-from .solvers.idioms import coefficients, condense, eigen, enforce
+from .solvers.idioms import coefficients, condense, eigen, enforce, penalize
 from .approximation.kernels import cubic_spline, quartic_spline
 from .meshes import local_spacing
 from .approximation.shape import ShapeTable, SingularMomentError, rk_shape_functions
@@ -30,6 +30,7 @@ __all__ = [
     "layout",
     "linear_solve",
     "local_spacing",
+    "penalize",
     "quartic_spline",
     "rk_shape_functions",
     "solve",

@@ -4,7 +4,8 @@ scikit-fem's ``condense(A, b, x=x, D=D)`` and ``enforce`` fix the solution
 vector's entries ``d_D``.  On an RK basis those are coefficients, not the
 field's values: the nodal values are ``û = Λᵀ d`` (Eq. 3.32-3.34), and the
 transformation method prescribes ``(Λᵀ d)_D = x_D`` (Eq. 3.37).  This module
-gives :func:`condense`, :func:`enforce` and :func:`eigen` with scikit-fem's
+gives :func:`condense`, :func:`enforce`, :func:`penalize` and :func:`eigen`
+with scikit-fem's
 signatures (plus ``basis``) that prescribe nodal values, and
 :func:`coefficients`, the coefficients of given nodal values.  For a FEM basis
 (or ``basis=None``) they are scikit-fem's own functions.
@@ -38,7 +39,7 @@ from scipy.sparse.linalg import eigs, eigsh, splu
 
 from ..approximation.constraints import transformation
 
-__all__ = ["condense", "enforce", "eigen", "coefficients", "NodalElimination"]
+__all__ = ["condense", "enforce", "penalize", "eigen", "coefficients", "NodalElimination"]
 
 #: dense entries of ``C_D⁻¹ C_I`` above which :func:`condense` refuses
 DENSE_LIMIT = 50_000_000
@@ -244,6 +245,40 @@ def enforce(A, b=None, x=None, I=None, D=None, diag=1.0, overwrite=False, basis=
         b_e[I] = elim.Z.T @ np.asarray(b, dtype=float)
         b_e[D] = diag * _values(x, N, D)
     return A_e, b_e
+
+
+def penalize(A, b=None, x=None, I=None, D=None, epsilon=None, overwrite=False,
+             basis=None):
+    """Penalize prescribed *nodal values* in a linear system.
+
+    scikit-fem's :func:`skfem.penalize` with ``x[D]`` the prescribed nodal
+    values; for a FEM basis or ``basis=None`` it is :func:`skfem.penalize`.
+    On an RK basis the penalty acts on the nodal values ``C d``,
+    ``C = Λᵀ[D]`` (Eq. 3.37): ``A + CᵀC/ε`` and ``b + Cᵀ x[D]/ε`` (a mass
+    matrix ``b`` is returned unchanged).  The nodal values then miss
+    ``x[D]`` by O(ε |A|).  Default ``ε = 1e-10 / max |diag A[D]|`` as in
+    scikit-fem.  The matrices are new (``overwrite`` is ignored on RK bases).
+
+    Returns
+    -------
+    (A_p, b_p), or A_p when ``b`` is None.
+    """
+    if not _is_rk(basis):
+        return skfem.penalize(A, b, x=x, I=I, D=D, epsilon=epsilon, overwrite=overwrite)
+    N = A.shape[0]
+    I, D = _split(N, I, D)
+    C = transformation(basis).tocsr()[D]
+    if epsilon is None:
+        epsilon = 1e-10 / np.abs(A.diagonal()[D]).max(initial=0.0)
+    if not (np.isfinite(epsilon) and epsilon > 0):
+        raise ValueError(f"epsilon must be positive and finite, not {epsilon!r} (the "
+                         f"default needs a nonzero diagonal of A at D)")
+    A_p = (sp.csr_matrix(A) + (C.T @ C) / epsilon).tocsr()
+    if b is None:
+        return A_p
+    if sp.issparse(b):
+        return A_p, b
+    return A_p, np.asarray(b, dtype=float) + C.T @ _values(x, N, D) / epsilon
 
 
 def eigen(K, M, basis=None, D=None, k=6, sigma=0.0, symmetric=None):

@@ -41,8 +41,8 @@ from ..approximation.constraints import transformation
 
 __all__ = ["condense", "enforce", "penalize", "eigen", "coefficients", "NodalElimination"]
 
-#: dense entries of ``C_D⁻¹ C_I`` above which :func:`condense` refuses
-DENSE_LIMIT = 50_000_000
+#: dense entries of ``C_D⁻¹ C_I`` above which :func:`condense` refuses (160 MB)
+DENSE_LIMIT = 20_000_000
 
 
 def _is_rk(basis):

@@ -148,8 +148,8 @@ def test_every_3d_tool_kind_builds_its_surface_contact(section, kind):
     ('kind = "platen"\npoint = [0.0, 10.0]\nnormal = [0.0, -1.0]',
      "tools.platen.point: needs 3 components in a 3D model, not 2"),
     ('kind = "sphere"\ncenter = [0.0, 0.0, 15.0]', "a sphere needs 'radius'"),
-    ('kind = "platen"\npoint = [0.0, 0.0, 10.0]\nnormal = [0.0, 0.0, -1.0]\nforce = 100.0',
-     "force-driven tools are implemented for 2D models only"),
+    ('kind = "sphere"\ncenter = [0.0, 0.0, 15.0]\nradius = 5.0\nforce = 100.0',
+     "a force-driven sphere needs 'direction'"),
     ('kind = "surface"\nfile = "no-such-tool.stl"', "no-such-tool.stl"),
     ('kind = "platen"\npoint = [0.0, 0.0, 10.0]\nnormal = [0.0, 0.0, 0.0]', "normal"),
 ])
@@ -186,3 +186,24 @@ radius = 1.0
         parse_scene(text.replace('kind = "sphere"\ncenter = [0.5, 2.0]\nradius = 1.0',
                                  'kind = "platen"\npoint = [0.0, 1.0]\nnormal = [0.0, -1.0]\n'
                                  'rotation = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 5.0]'))
+
+
+def test_force_driven_platen_presses_the_block_with_its_force(tmp_path):
+    """A platen driven by a force history (20 kN, reached linearly) instead
+    of a motion: every step's platen reaction is the force (the travel is
+    solved for it, to 1e-9), and the height change it reaches is the one
+    at which the exact uniaxial J2 state carries that force (to 1e-6: the
+    penetration p/ω is part of the travel)."""
+    from scipy.optimize import brentq
+
+    text = BLOCK + PLATEN.replace("motion = [0.0, 0.0, -3.0]", "force = 20000.0")
+    rows = run_scene(tmp_path, text, "fem", "pressed")
+    material = material_from(parse_scene(text)["material"])
+    for row in rows:
+        force = 20000.0 * float(row["t"])
+        assert -float(row["reaction platen z"]) == pytest.approx(force, rel=1e-9)
+        change = brentq(lambda c: -uniaxial_compression(c, material.E, material.nu,
+                                                        material.hardening).nominal
+                        * 100.0 - force, 0.0, 0.5, xtol=1e-14)
+        travel = float(row["platen travel"]) - float(row["platen penetration"])
+        assert travel / 10.0 == pytest.approx(change, rel=1e-6)

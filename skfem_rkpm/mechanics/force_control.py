@@ -22,25 +22,38 @@ iteration as with ``s`` in the unknowns, with the solver and the step
 controller left as they are.
 """
 
+from dataclasses import dataclass, fields
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import brentq
 
+from .friction import ContactState
 from .loads import History
 from .rigid_contact import RigidContact
 
-__all__ = ["ForceDrivenContact"]
+__all__ = ["ForceDrivenContact", "DrivenContactState"]
+
+
+@dataclass
+class DrivenContactState(ContactState):
+    """The contact state of a force-driven tool and its ``travel`` along
+    its direction (plain arrays, for checkpoints)."""
+
+    travel: np.ndarray = 0.0
 
 
 class ForceDrivenContact:
-    """A :class:`RigidContact` whose tool is driven by a force history.
+    """A :class:`RigidContact` (or 3D
+    :class:`~skfem_rkpm.mechanics.surface_contact.SurfaceContact`) whose tool
+    is driven by a force history.
 
     Parameters
     ----------
-    contact : RigidContact
+    contact : RigidContact or SurfaceContact
         The tool and its contact; the tool's own ``motion`` is added to
         the force-driven travel (usually zero).
-    direction : array_like (2,)
+    direction : array_like (2,) or (3,)
         Direction ``e`` of the travel (normalized here); the force is the
         tool's push on the body along ``e``.
     force : float or table
@@ -55,19 +68,18 @@ class ForceDrivenContact:
     def __init__(self, contact, direction, force, reach=None):
         if not isinstance(contact, RigidContact):
             raise TypeError("contact must be a RigidContact")
+        dim = contact.points.dim
         e = np.asarray(direction, dtype=float)
-        if e.shape != (2,) or not np.all(np.isfinite(e)) or not np.linalg.norm(e) > 0:
+        if e.shape != (dim,) or not np.all(np.isfinite(e)) or not np.linalg.norm(e) > 0:
             raise ValueError(f"tool {contact.name!r}: the force direction must be a "
-                             f"non-zero vector [x, y], not {direction!r}")
+                             f"non-zero vector of {dim} components, not {direction!r}")
         self.contact, self.name = contact, contact.name
         self.e = e / np.linalg.norm(e)
         self.history = History(force, f"tool {contact.name!r} force")
         if np.min(self.history.values) < 0:
             raise ValueError(f"tool {contact.name!r}: a force history must not be "
                              "negative (a tool can only push)")
-        basis = contact.problem.basis
-        ncomp = 2
-        self.T = np.tile(self.e, basis.N // ncomp)
+        self.T = np.tile(self.e, contact.problem.basis.N // dim)
         span = np.ptp(contact.points.X, axis=1).max()
         self.reach = 10.0 * span if reach is None else float(reach)
         self.s = self.s_trial = 0.0
@@ -123,7 +135,8 @@ class ForceDrivenContact:
 
     #: hooks of the wrapped contact that Newton calls when they exist
     #: (augmented Lagrangian enforcement, contact status counts)
-    FORWARDED = ("touching", "restart", "augment", "violation", "status_changes")
+    FORWARDED = ("touching", "restart", "augment", "violation", "status_changes", "tool",
+                 "points")
 
     def __getattr__(self, name):
         if name in ForceDrivenContact.FORWARDED:
@@ -143,9 +156,14 @@ class ForceDrivenContact:
         return out
 
     def get_state(self):
-        return (self.contact.get_state(), self.s)
+        """The committed contact state with the committed travel."""
+        state = self.contact.get_state()
+        return DrivenContactState(**{f.name: getattr(state, f.name)
+                                     for f in fields(ContactState)},
+                                  travel=np.float64(self.s))
 
     def set_state(self, state):
-        contact_state, s = state
-        self.contact.set_state(contact_state)
-        self.s = self.s_trial = float(s)
+        """Restore a state returned by :meth:`get_state`."""
+        self.contact.set_state(ContactState(**{f.name: getattr(state, f.name)
+                                               for f in fields(ContactState)}))
+        self.s = self.s_trial = float(state.travel)

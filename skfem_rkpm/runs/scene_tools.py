@@ -113,9 +113,6 @@ def check_tool(name, section, dim, fail, base=None):
                                   f"{len(section[key])}")
     if section.get("rotation") is not None and dim != 3:
         fail(f"{name}.rotation", "rotating tools are 3D only")
-    if section["force"] is not None and dim == 3:
-        fail(f"{name}.force", "force-driven tools are implemented for 2D models only; "
-                              "give the tool a motion")
     if section["force"] is not None and section["direction"] is None \
             and kind not in ("platen", "plane"):
         fail(f"{name}.force", f"a force-driven {kind} needs 'direction'")

@@ -424,7 +424,7 @@ def test_symmetry_planes_at_an_angle_turn_the_solution(method, how):
     np.testing.assert_allclose(u1, R @ u0, rtol=0, atol=1e-10 * np.abs(u0).max())
     # the reaction of a skew condition is named by its direction
     normal = np.array([np.sin(a), -np.cos(a)]) * -1  # largest component positive
-    assert f"start[n=({normal[0]:.6g}, {normal[1]:.6g})]" in result.history[-1].reactions
+    assert f"start[n={normal[0]:.4g} {normal[1]:.4g}]" in result.history[-1].reactions
 
 
 ROTATED_CUBE = """SetFactory("OpenCASCADE");
@@ -504,7 +504,7 @@ def test_turned_cube_on_three_symmetry_planes_stretches_uniaxially(tmp_path, met
     u = (sim.basis.probes(X) @ result.d).reshape(3, -1)
     np.testing.assert_allclose(u, (F - np.eye(3)) @ X, rtol=0, atol=1e-10 * np.abs(u).max())
     (name,) = [k for k in result.history[-1].reactions if k.startswith("c[")]
-    assert name == "c[n=(0, -0.34202, 0.939693)]"  # R_x(20°) e_z
+    assert name == "c[n=0 -0.342 0.9397]"  # R_x(20°) e_z
     assert abs(result.history[-1].reactions[name]) == pytest.approx(p, rel=1e-10)
 
 

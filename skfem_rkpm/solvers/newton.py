@@ -64,7 +64,8 @@ class Prescribed:
     def name(self):
         if isinstance(self.component, (int, np.integer)):
             return f"{self.boundary}[{self.component}]"
-        return f"{self.boundary}[n=({', '.join(f'{c:.6g}' for c in self.component)})]"
+        n = np.asarray(self.component, float)
+        return f"{self.boundary}[n={' '.join(f'{c:.4g}' for c in n / np.linalg.norm(n))}]"
 
     def constraint(self, basis):
         if self.method == "nodal":

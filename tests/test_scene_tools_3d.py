@@ -11,7 +11,6 @@ import pytest
 
 from skfem_rkpm.mechanics.surface_contact import SurfaceContact
 from skfem_rkpm.mechanics.surfaces import Cylinder, Plane, Sphere, Torus
-from skfem_rkpm.mechanics.triangulated import TriangulatedSurface
 from skfem_rkpm.runs.build import build
 from skfem_rkpm.runs.cli import main
 from skfem_rkpm.runs.scene import SceneError, material_from, parse_scene

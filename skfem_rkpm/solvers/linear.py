@@ -53,7 +53,6 @@ function).
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_backend,

@@ -10,6 +10,7 @@ curvature tensor ``C = ∂n/∂x``, the Hessian of the signed distance
 with meshio) are in :mod:`.triangulated`.
 """
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,7 +156,7 @@ class SurfaceProjection:
     feature: np.ndarray
 
 
-class Surface:
+class Surface(ABC):
     """A rigid tool surface in 3D with a prescribed rigid motion.
 
     A point fixed to the tool moves as ``x = R(t) x_body + b(t)``: first a
@@ -254,13 +255,15 @@ class Surface:
     def nfeatures(self):
         return 1
 
+    @abstractmethod
     def _project_body(self, x):
         """``(point, normal, gap, curvature, feature)`` of body-frame points
         ``x`` (n, 3), arrays (n, 3), (n, 3), (n,), (n, 3, 3), (n,)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _outline_body(self, resolution, extent):
-        raise NotImplementedError
+        """``(points (m, 3), triangles (k, 3))`` of the surface in the body
+        frame, counter-clockwise seen from the body."""
 
     def __repr__(self):
         return f"{type(self).__name__}({self.name!r}: {self._describe()})"

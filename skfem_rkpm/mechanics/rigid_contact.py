@@ -271,8 +271,7 @@ class RigidContact:
                  penalty=None, tangential_penalty=None, factor=DEFAULT_PENALTY_FACTOR,
                  tangential_factor=DEFAULT_TANGENTIAL_FACTOR, intorder=None,
                  enforcement="penalty", tolerance=DEFAULT_AUGMENTED_TOLERANCE):
-        if not isinstance(tool, Tool):
-            raise TypeError(f"tool must be a Tool (Platen, Polyline, Arc), not {tool!r}")
+        self._check_tool(tool, problem)
         if enforcement not in ("penalty", "augmented"):
             raise ValueError(f"enforcement must be 'penalty' or 'augmented', not "
                              f"{enforcement!r}")
@@ -292,8 +291,17 @@ class RigidContact:
         self._coupling = _PointCoupling(self.points)
         self.state = self.trial = self._initial_state()
         self.restart()
-        _check_initial_side(tool, self.points.X, self.points.spacing)
+        self._check_start()
         _warn_if_out_of_reach(tool, self.points.X, self.points.spacing)
+
+    def _check_tool(self, tool, problem):
+        """TypeError unless ``tool`` is a 2D :class:`Tool`."""
+        if not isinstance(tool, Tool):
+            raise TypeError(f"tool must be a Tool (Platen, Polyline, Arc), not {tool!r}")
+
+    def _check_start(self):
+        """:class:`ToolSideError` if the tool starts on the wrong side."""
+        _check_initial_side(self.tool, self.points.X, self.points.spacing)
 
     def _initial_state(self):
         X, m = self.points.X, self.points.m

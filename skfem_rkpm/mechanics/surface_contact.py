@@ -21,12 +21,9 @@ contact); the points carry ``t_q = Σ_K N_qK (t_n,K n_q + T_K)``.
 
 import numpy as np
 
-from .friction import (DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR,
-                       DEFAULT_TANGENTIAL_FACTOR, ContactState, _positive,
-                       coulomb_vector, default_penalty, friction_coefficient)
+from .friction import ContactState, coulomb_vector
 from .rigid_contact import (RigidContact, ToolSideError, _check_finite_traction,
-                            _PointCoupling, _touch_fraction, _warn_if_out_of_reach)
-from .slave_points import slave_points
+                            _touch_fraction)
 
 __all__ = ["SurfaceContact"]
 
@@ -126,37 +123,19 @@ class SurfaceContact(RigidContact):
     of the state has shape ``(m, 3)``).
     """
 
-    def __init__(self, problem, tool, slaves=None, friction=0.0, collocation="nodal",
-                 penalty=None, tangential_penalty=None, factor=DEFAULT_PENALTY_FACTOR,
-                 tangential_factor=DEFAULT_TANGENTIAL_FACTOR, intorder=None,
-                 enforcement="penalty", tolerance=DEFAULT_AUGMENTED_TOLERANCE):
+    def _check_tool(self, tool, problem):
+        """TypeError unless ``tool`` is a 3D surface; ValueError unless the
+        model is 3D."""
         if not all(hasattr(tool, a) for a in ("project", "to_body", "placement")):
             raise TypeError("tool must be a 3D surface (Plane, Cylinder, Sphere, Torus, "
                             f"TriangulatedSurface), not {tool!r}")
-        if enforcement not in ("penalty", "augmented"):
-            raise ValueError(f"enforcement must be 'penalty' or 'augmented', not "
-                             f"{enforcement!r}")
         if problem.model != "3d":
             raise ValueError(f"SurfaceContact needs a 3D model, not {problem.model!r}; "
                              "use RigidContact with a 2D tool")
-        self.problem, self.tool, self.name = problem, tool, tool.name
-        self.enforcement = enforcement
-        self.mu = friction_coefficient(friction, exact_stick=enforcement == "augmented")
-        self.collocation = collocation
-        self.points = slave_points(problem.basis, slaves, collocation, problem.model,
-                                   intorder)
-        spacing = self.points.spacing
-        self.omega_n = (default_penalty(problem.material.E, spacing, factor)
-                        if penalty is None else _positive(penalty, "penalty"))
-        self.omega_t = (default_penalty(problem.material.E, spacing, tangential_factor)
-                        if tangential_penalty is None
-                        else _positive(tangential_penalty, "tangential penalty"))
-        self.tolerance = _positive(tolerance, "augmented Lagrangian tolerance")
-        self._coupling = _PointCoupling(self.points)
-        self.state = self.trial = self._initial_state()
-        self.restart()
-        _check_initial_side_3d(tool, self.points.X, spacing)
-        _warn_if_out_of_reach(tool, self.points.X, spacing)
+
+    def _check_start(self):
+        """:class:`ToolSideError` if the surface starts facing away."""
+        _check_initial_side_3d(self.tool, self.points.X, self.points.spacing)
 
     def _initial_state(self):
         X, m, dim = self.points.X, self.points.m, self.points.dim

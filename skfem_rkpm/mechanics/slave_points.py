@@ -272,8 +272,7 @@ def _quadrature_points(basis, facets, axisymmetric, intorder, pointwise=False):
     spacing = _facet_spacing(mesh, facets)
     if pointwise:
         return SlavePoints(x, w, G, spacing, sp.identity(len(w), format="csr"), w)
-    split = _split_by_normals if mesh.dim() == 3 else _split_at_corners
-    hats, nodes = split(mesh, facets, hats)
+    hats, nodes = _split_by_normals(mesh, facets, hats)
     return SlavePoints(x, w, G, spacing, hats, np.asarray(hats.T @ w).ravel(), nodes)
 
 
@@ -281,49 +280,11 @@ def _quadrature_points(basis, facets, axisymmetric, intorder, pointwise=False):
 CORNER_ANGLE = 30.0
 
 
-def _corner_vertices(mesh, fv):
-    """Vertices where exactly two slave facets meet at more than
-    :data:`CORNER_ANGLE` degrees, and the second of the two facets (index
-    into the slave facets), given the facet vertices ``fv`` (2, nf)."""
-    d = mesh.p[:, fv[1]] - mesh.p[:, fv[0]]
-    d /= np.linalg.norm(d, axis=0)
-    verts = fv.T.ravel()
-    order = np.argsort(verts, kind="stable")
-    facet = order // 2
-    vertex, start, count = np.unique(verts[order], return_index=True, return_counts=True)
-    two = count == 2
-    a, b = facet[start[two]], facet[start[two] + 1]
-    sharp = np.abs(d[0, a] * d[1, b] - d[1, a] * d[0, b]) > np.sin(np.radians(CORNER_ANGLE))
-    return vertex[two][sharp], b[sharp]
-
-
-def _split_at_corners(mesh, facets, hats):
-    """Contact nodes: one per slave vertex, two at a corner of the slave
-    surface (one per side, each with its half of the hat function), so
-    that a weighted gap never mixes the two faces of a corner.
-
-    Returns the hat values at the Gauss points (sparse nq × m; the rows of
-    ``hats`` are facet-major) and the vertex of every contact node."""
-    fv = mesh.facets[:, facets]
-    nodes = np.unique(fv)
-    corners, second = _corner_vertices(mesh, fv)
-    coo = sp.coo_matrix(hats)
-    keep = np.isin(coo.col, nodes) & (coo.data != 0)
-    row, col, data = coo.row[keep], coo.col[keep], coo.data[keep]
-    facet = row // (hats.shape[0] // len(facets))
-    k = np.minimum(np.searchsorted(corners, col), len(corners) - 1)
-    split = (np.isin(col, corners) & (second[k] == facet) if len(corners)
-             else np.zeros(len(col), bool))
-    column = np.where(split, len(nodes) + k, np.searchsorted(nodes, col))
-    out = sp.csr_matrix((data, (row, column)), shape=(hats.shape[0], len(nodes) + len(corners)))
-    return out, np.concatenate([nodes, corners])
-
-
 def _facet_groups(vertex, normal, cos_corner, rounds=8):
     """Group the (vertex, facet) incidences of every vertex by facet normal:
     in each round the first ungrouped incidence of a vertex opens a group,
     which every ungrouped incidence of that vertex within the corner angle
-    joins.  ``vertex`` (k,) sorted, ``normal`` (k, 3); returns the group
+    joins.  ``vertex`` (k,) sorted, ``normal`` (k, dim); returns the group
     number (k,) of every incidence."""
     group = np.full(len(vertex), -1)
     for g in range(rounds):
@@ -343,18 +304,18 @@ def _facet_groups(vertex, normal, cos_corner, rounds=8):
 
 
 def _split_by_normals(mesh, facets, hats):
-    """3D contact nodes: one per slave vertex and face of the slave surface
+    """Contact nodes: one per slave vertex and face of the slave surface
     meeting there (facets whose normals differ by more than
-    :data:`CORNER_ANGLE` degrees make distinct faces: the edges and corners
-    of a box), each with the part of its hat function on that face, so
-    that a weighted gap never mixes two faces.
+    :data:`CORNER_ANGLE` degrees make distinct faces: the corners of a 2D
+    section, the edges and corners of a box), each with the part of its hat
+    function on that face, so that a weighted gap never mixes two faces.
 
     Returns the hat values at the Gauss points (sparse nq × m; the rows of
     ``hats`` are facet-major) and the vertex of every contact node."""
     from skfem import FacetBasis
 
     fb = FacetBasis(mesh, type(mesh).elem(), facets=facets, intorder=1)
-    normal = np.asarray(fb.normals)[:, :, 0].T  # (nf, 3), one per (flat) facet
+    normal = np.asarray(fb.normals)[:, :, 0].T  # (nf, dim), one per (flat) facet
     fv = mesh.facets[:, facets]
     vertex = fv.T.ravel()
     facet = np.repeat(np.arange(len(facets)), fv.shape[0])

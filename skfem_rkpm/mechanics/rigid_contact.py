@@ -440,10 +440,12 @@ class RigidContact:
         return self.trial.penetration
 
     def gauges(self, t):
-        """Tool position and penetration, for output tables."""
-        dx = self.tool.translation(t)
-        return {f"{self.name} dx": float(dx[0]), f"{self.name} dy": float(dx[1]),
-                f"{self.name} penetration": self.penetration()}
+        """Tool translation (a 3D surface's prescribed ``displacement``, without
+        the swing of a rotation) and penetration, for output tables."""
+        dx = getattr(self.tool, "displacement", self.tool.translation)(t)
+        out = {f"{self.name} d{c}": float(v) for c, v in zip("xyz", dx)}
+        out[f"{self.name} penetration"] = self.penetration()
+        return out
 
     def get_state(self):
         """The committed state (for checkpoints)."""
@@ -451,7 +453,7 @@ class RigidContact:
 
     def set_state(self, state):
         """Restore a state returned by :meth:`get_state`."""
-        if state.gap.shape != (self.points.n,) or state.shear.shape != (self.points.m,):
+        if state.gap.shape != (self.points.n,) or state.shear.shape != self.state.shear.shape:
             raise ValueError("the state belongs to a contact with different slave points")
         self.state = self.trial = state
         self.restart()

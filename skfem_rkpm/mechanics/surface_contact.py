@@ -209,19 +209,3 @@ class SurfaceContact(RigidContact):
             sticking = trial.active & ~trial.slip
             slip = np.linalg.norm(self._sticking_slip, axis=1)[sticking].max(initial=0.0)
         return max(penetration, slip) / (self.tolerance * self.points.spacing)
-
-    def gauges(self, t):
-        """Tool translation (its ``motion``; a rotation is not included) and
-        penetration, for output tables."""
-        dx = self.tool.displacement(t)
-        out = {f"{self.name} d{c}": float(v) for c, v in zip("xyz", dx)}
-        out[f"{self.name} penetration"] = self.penetration()
-        return out
-
-    def set_state(self, state):
-        """Restore a state returned by :meth:`get_state`."""
-        if state.gap.shape != (self.points.n,) or state.shear.shape != (
-                self.points.m, self.points.dim):
-            raise ValueError("the state belongs to a contact with different slave points")
-        self.state = self.trial = state
-        self.restart()

@@ -87,40 +87,31 @@ def direction(component, ncomp):
     return n / np.linalg.norm(n)
 
 
-def nodal_constraint(basis, facets, component):
-    """Prescribe nodal values on the nodes of ``facets`` (Eq. 3.37):
-    of one displacement component, or of ``n·u`` for a direction ``n``."""
-    mesh = basis.mesh
-    find = _named_facets(mesh, facets)
-    ncomp = _ncomp(basis)
-    if not isinstance(component, (int, np.integer)):
-        return _skew_nodal_constraint(basis, find, direction(component, ncomp))
-    if hasattr(basis, "element_nodes"):
-        nodes = np.unique(mesh.facets[:, find])
-        dofs = ncomp * nodes + component
-        x = mesh.p[:, nodes]
-    else:  # FEM: every dof on the facets, vertices and higher-order nodes
-        dofs = np.sort(basis.get_dofs(find).all(f"u^{component + 1}")
-                       if ncomp > 1 else basis.get_dofs(find).all())
-        nodes, x = dofs // ncomp, basis.doflocs[:, dofs]
-    return Constraint(transformation(basis)[dofs], sp.identity(len(dofs)),
-                      nodes, x, component)
-
-
-def _skew_nodal_constraint(basis, facets, n):
-    """Nodal values of ``n·u`` on the nodes of ``facets``: the rows
-    ``Σ_c n_c Λᵀ[c]`` of the components (Eq. 3.37)."""
-    mesh, ncomp = basis.mesh, len(n)
+def _component_dofs(basis, facets, component):
+    """Dofs of one displacement component on ``facets``, with their nodes and
+    coordinates: a particle's for RK bases; for FEM every dof on the facets
+    (vertices and higher-order nodes)."""
+    mesh, ncomp = basis.mesh, _ncomp(basis)
     if hasattr(basis, "element_nodes"):
         nodes = np.unique(mesh.facets[:, facets])
-        dofs = [ncomp * nodes + c for c in range(ncomp)]
-        x = mesh.p[:, nodes]
-    else:
-        dofs = [np.sort(basis.get_dofs(facets).all(f"u^{c + 1}")) for c in range(ncomp)]
-        nodes, x = dofs[0] // ncomp, basis.doflocs[:, dofs[0]]
+        return ncomp * nodes + component, nodes, mesh.p[:, nodes]
+    dofs = np.sort(basis.get_dofs(facets).all(f"u^{component + 1}")
+                   if ncomp > 1 else basis.get_dofs(facets).all())
+    return dofs, dofs // ncomp, basis.doflocs[:, dofs]
+
+
+def nodal_constraint(basis, facets, component):
+    """Prescribe nodal values on the nodes of ``facets`` (Eq. 3.37): of one
+    displacement component (the rows of ``Λᵀ``), or of ``n·u`` for a
+    direction ``n`` (the rows ``Σ_c n_c Λᵀ[c]``)."""
+    find = _named_facets(basis.mesh, facets)
+    n = direction(component, _ncomp(basis))
     T = transformation(basis)
-    C = sum(n[c] * T[dofs[c]] for c in range(ncomp) if n[c] != 0.0)
-    return Constraint(C, sp.identity(len(nodes)), nodes, x, tuple(n))
+    components = np.flatnonzero(n)
+    _, nodes, x = _component_dofs(basis, find, components[0])
+    C = sum(n[c] * T[_component_dofs(basis, find, c)[0]] for c in components)
+    return Constraint(C, sp.identity(len(nodes)), nodes, x,
+                      component if isinstance(component, (int, np.integer)) else tuple(n))
 
 
 def _facet_values(fb):

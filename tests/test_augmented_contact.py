@@ -219,3 +219,46 @@ def test_quadratic_elements_collocate_at_all_their_facet_nodes(enforcement, fact
     force = np.pi * uniaxial_compression(0.3, E, NU, LAW).nominal
     # measured: 1.0e-5 (penalty), 2.0e-7 (augmented)
     assert result.history[-1].reactions["top"][1] == pytest.approx(force, rel=rtol)
+
+
+@pytest.mark.parametrize("kind", ["fem", "rk"])
+def test_the_tangent_is_formed_once_per_newton_update(kind, monkeypatch):
+    """Line-search trials and converged states need no tangent: the solid's
+    tangent is formed exactly once per Newton iteration (every attempt
+    counted), fewer times than the solid is evaluated, and the run is the
+    one an eagerly formed tangent gives (the same matrices, so the same
+    iterations and solution to the last bit)."""
+    def run(lazy):
+        problem = problem_on(kind, rectangle(1.0, 1.0, 4, 4))
+        platen = RigidContact(problem, Platen((0, 1), (0, -1), motion=(0, -0.02),
+                                              name="platen"), "top", friction=0.3)
+        calls = {"evaluate": 0, "tangent": 0}
+        evaluate, form = problem.evaluate, problem._tangent_matrix
+
+        def counted_evaluate(d, *args, **kwargs):
+            calls["evaluate"] += 1
+            ev = evaluate(d, *args, **kwargs)
+            if not lazy:
+                ev.K  # noqa: B018 - formed at once
+            return ev
+
+        def counted_form(*args, **kwargs):
+            calls["tangent"] += 1
+            return form(*args, **kwargs)
+
+        monkeypatch.setattr(problem, "evaluate", counted_evaluate)
+        monkeypatch.setattr(problem, "_tangent_matrix", counted_form)
+        result = newton_steps(problem, [Prescribed("bottom", 1, 0.0),
+                                        Prescribed("left", 0, 0.0)],
+                              steps=4, contributions=[platen])
+        assert result.completed, result.message
+        return result, calls
+
+    lazy, calls = run(lazy=True)
+    eager, eager_calls = run(lazy=False)
+    iterations = sum(r.spent_iterations for r in lazy.history)
+    assert calls["tangent"] == iterations
+    assert eager_calls["tangent"] == eager_calls["evaluate"] > iterations
+    assert [r.spent_iterations for r in lazy.history] == [
+        r.spent_iterations for r in eager.history]
+    np.testing.assert_array_equal(lazy.d, eager.d)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Hardening", "perfect", "linear", "swift", "voce", "table", "J2Material",
-           "MaterialState", "ReturnMapError"]
+           "MaterialState", "ReturnMapError", "ReturnPoint"]
 
 I3 = np.eye(3)
 #: the shear pairs (A, B), A < B, of principal components
@@ -182,6 +182,23 @@ class MaterialState:
 
     def copy(self):
         return MaterialState(self.Cp_inv.copy(), self.alpha.copy())
+
+
+@dataclass
+class ReturnPoint:
+    """What the consistent tangent needs of one stress update (n points):
+    ``F⁻¹``, ``P``, the eigenvalues ``lam`` and eigenvectors ``vec`` of the
+    trial ``b_e``, the trial log strains, ``Δγ``, the trial Mises stress and
+    the hardening slope."""
+
+    Finv: np.ndarray
+    P: np.ndarray
+    lam: np.ndarray
+    vec: np.ndarray
+    eps_trial: np.ndarray
+    dgamma: np.ndarray
+    q_trial: np.ndarray
+    H: np.ndarray
 
 
 def _spectral(b):
@@ -429,6 +446,17 @@ class J2Material:
         new_state : MaterialState
         A : ndarray, shape (n, 3, 3, 3, 3) or (n, m, m), or None
         """
+        P, tau, new_state, point = self.stress(F, state)
+        return P, tau, new_state, self.tangent(point, entries) if tangent else None
+
+    def stress(self, F, state):
+        """Stress and new state for ``F``, and what :meth:`tangent` needs.
+
+        Returns ``P``, ``tau``, ``new_state`` as :meth:`update` does and a
+        :class:`ReturnPoint` from which :meth:`tangent` forms ``∂P/∂F``
+        later, only if it is asked for (a Newton line search rejects some
+        states, and the converged state needs no tangent).
+        """
         Finv = np.linalg.inv(F)
         b = F @ state.Cp_inv @ F.transpose(0, 2, 1)
         b = 0.5 * (b + b.transpose(0, 2, 1))
@@ -444,16 +472,20 @@ class J2Material:
         Cp_inv = Finv @ b_new @ Finv.transpose(0, 2, 1)
         new_state = MaterialState(0.5 * (Cp_inv + Cp_inv.transpose(0, 2, 1)), alpha)
         P = tau @ Finv.transpose(0, 2, 1)
-        if not tangent:
-            return P, tau, new_state, None
+        return P, tau, new_state, ReturnPoint(Finv, P, lam, vec, eps_trial, dgamma,
+                                              q_trial, H)
 
-        dev_trial = eps_trial - eps_trial.mean(axis=1, keepdims=True)
+    def tangent(self, point, entries=None):
+        """Consistent tangent ``A = ∂P/∂F`` at a :class:`ReturnPoint` of
+        :meth:`stress`, between ``entries`` as in :meth:`update`."""
+        dev_trial = point.eps_trial - point.eps_trial.mean(axis=1, keepdims=True)
         norm = np.linalg.norm(dev_trial, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             dev_dir = np.where(norm[:, None] > 0, dev_trial / norm[:, None], 0.0)
-        D, g = self._principal_tangent(lam, dev_dir, dgamma, q_trial, H)
+        D, g = self._principal_tangent(point.lam, dev_dir, point.dgamma, point.q_trial,
+                                       point.H)
         full = entries is None
         if full:
             entries = [(i, J) for i in range(3) for J in range(3)]
-        A = self._tangent(vec, Finv, P, D, g, entries)
-        return P, tau, new_state, A.reshape(-1, 3, 3, 3, 3) if full else A
+        A = self._tangent(point.vec, point.Finv, point.P, D, g, entries)
+        return A.reshape(-1, 3, 3, 3, 3) if full else A

@@ -17,8 +17,6 @@ stabilization adds the constant Lagrangian stiffness ``α K_stab`` (see
 built with the elastic moduli of the material.
 """
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..approximation.nodal_integration import stabilization_matrix
@@ -47,16 +45,23 @@ class NonFiniteError(RuntimeError):
         self.points = points
 
 
-@dataclass
 class Evaluation:
-    """One evaluation of the solid at coefficients ``d``."""
+    """One evaluation of the solid at coefficients ``d``: the internal force
+    ``f_int``, ``F``, ``P``, ``tau`` and the trial material ``state`` at the
+    quadrature points, and the tangent ``K``, formed when it is first read
+    (a Newton line search rejects some states, and a converged state needs
+    no tangent); ``K`` is None if the evaluation was asked for none."""
 
-    f_int: np.ndarray
-    K: object
-    F: np.ndarray
-    P: np.ndarray
-    tau: np.ndarray
-    state: MaterialState
+    def __init__(self, f_int, F, P, tau, state, form_tangent=None):
+        self.f_int, self.F, self.P, self.tau, self.state = f_int, F, P, tau, state
+        self._form_tangent = form_tangent
+        self._K = None
+
+    @property
+    def K(self):
+        if self._form_tangent is not None:
+            self._K, self._form_tangent = self._form_tangent(), None
+        return self._K
 
 
 class SolidProblem:
@@ -134,19 +139,31 @@ class SolidProblem:
                 f"det F = {J[bad[0]]:.3g} <= 0 at {bad.size} quadrature points; "
                 f"first {self._where(bad[0])}", bad)
         if self.locking == "fbar":
-            return self._stabilized(self._evaluate_fbar(F, Finv, J, state, tangent), d)
-        P, tau, new_state, A = self._update(F, state, tangent)
-        P_ext, A_ext = from_entries(self._at_entries(P), A, self.model, self.shape)
-        f_int = self.assembler.linear(P_ext)
-        K = self._tangent_matrix(A_ext) if tangent else None
-        return self._stabilized(Evaluation(f_int, K, F, P, tau, new_state), d)
+            evaluation = self._evaluate_fbar(F, Finv, J, state, tangent)
+        else:
+            evaluation = self._evaluate_plain(F, state, tangent)
+        return self._stabilized(evaluation, d)
+
+    def _evaluate_plain(self, F, state, tangent):
+        """Internal force ``∫ ∇̃Ψ · P dV`` and tangent ``∫ ∇̃Ψ · A · ∇Ψ dV``."""
+        P, tau, new_state, point = self._stress(F, state)
+        P_at = self._at_entries(P)
+        P_ext, _ = from_entries(P_at, None, self.model, self.shape)
+
+        def form_tangent():
+            A = self._material_tangent(point)
+            return self._tangent_matrix(from_entries(P_at, A, self.model, self.shape)[1])
+
+        return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
+                          form_tangent if tangent else None)
 
     def _stabilized(self, evaluation, d):
         """Add the stabilization force ``α K_stab d`` and stiffness, if any."""
         if self.stabilization is not None:
             evaluation.f_int = evaluation.f_int + self.stabilization @ np.asarray(d)
-            if evaluation.K is not None:
-                evaluation.K = self._add_stabilization(evaluation.K)
+            form = evaluation._form_tangent
+            if form is not None:
+                evaluation._form_tangent = lambda: self._add_stabilization(form())
         return evaluation
 
     def _add_stabilization(self, K):
@@ -171,18 +188,21 @@ class SolidProblem:
         K.data[self._stabilization_slots] += S.data
         return K
 
-    def _update(self, F, state, tangent):
-        """``material.update`` with failures named by quadrature point."""
+    def _stress(self, F, state):
+        """``material.stress`` with failures named by quadrature point."""
         try:
-            P, tau, new_state, A = self.material.update(F, state, tangent=tangent,
-                                                        entries=self.entries)
+            P, tau, new_state, point = self.material.stress(F, state)
         except ReturnMapError as err:
             raise ReturnMapError(f"{err} at {len(err.points)} quadrature points; first "
                                  f"{self._where(err.points[0])}", err.points) from None
         self._check_finite(P, "the stress P (return map)")
-        if A is not None:
-            self._check_finite(A, "the consistent tangent A")
-        return P, tau, new_state, A
+        return P, tau, new_state, point
+
+    def _material_tangent(self, point):
+        """``material.tangent`` at the model's entries, checked to be finite."""
+        A = self.material.tangent(point, self.entries)
+        self._check_finite(A, "the consistent tangent A")
+        return A
 
     def _where(self, point):
         """``cell c (point q) at X = (...)`` for a flat quadrature point index."""
@@ -229,26 +249,31 @@ class SolidProblem:
         beta = Jbar / J
         s, gamma = beta ** (1.0 / n), beta ** (1.0 / n - 1.0)
         Fbar = F + (s - 1.0)[:, None, None] * FM
-        Pbar, taubar, new_state, A = self._update(Fbar, state, tangent)
+        Pbar, taubar, new_state, point = self._stress(Fbar, state)
         P = gamma[:, None, None] * Pbar
         tau = (J / Jbar)[:, None, None] * taubar  # J σ with σ the Cauchy stress of F̄
-        if not tangent:
-            P_ext, _ = from_entries(self._at_entries(P), None, self.model, self.shape)
-            return Evaluation(self.assembler.linear(P_ext), None, F, P, tau, new_state)
-        FinvT = self._at_entries(Finv.transpose(0, 2, 1))
-        Pbar = self._at_entries(Pbar)
-        AF = (A @ self._at_entries(FM)[:, :, None])[:, :, 0]
-        A_hat = ((gamma * s)[:, None, None] * (A - AF[:, :, None] * FinvT[:, None, :] / n)
-                 + ((1.0 - 1.0 / n) * gamma)[:, None, None]
-                 * Pbar[:, :, None] * FinvT[:, None, :])
-        dP_dJbar = (gamma / Jbar)[:, None] * ((s / n)[:, None] * AF - (1.0 - 1.0 / n) * Pbar)
-        P_ext, A_ext = from_entries(self._at_entries(P), A_hat, self.model, self.shape)
-        dP_ext, _ = from_entries(dP_dJbar, None, self.model, self.shape)
-        dJ_ext, _ = from_entries(J[:, None] * FinvT, None, self.model, self.shape)
-        u = self.assembler.cell_vectors(dP_ext)
-        w = self.assembler.cell_vectors(dJ_ext, test=False) / np.sum(dV, axis=1)
-        K = self._tangent_matrix(A_ext, (u, w))
-        return Evaluation(self.assembler.linear(P_ext), K, F, P, tau, new_state)
+        P_at = self._at_entries(P)
+        P_ext, _ = from_entries(P_at, None, self.model, self.shape)
+
+        def form_tangent():
+            A = self._material_tangent(point)
+            FinvT = self._at_entries(Finv.transpose(0, 2, 1))
+            Pbar_at = self._at_entries(Pbar)
+            AF = (A @ self._at_entries(FM)[:, :, None])[:, :, 0]
+            A_hat = ((gamma * s)[:, None, None] * (A - AF[:, :, None] * FinvT[:, None, :] / n)
+                     + ((1.0 - 1.0 / n) * gamma)[:, None, None]
+                     * Pbar_at[:, :, None] * FinvT[:, None, :])
+            dP_dJbar = (gamma / Jbar)[:, None] * ((s / n)[:, None] * AF
+                                                  - (1.0 - 1.0 / n) * Pbar_at)
+            _, A_ext = from_entries(P_at, A_hat, self.model, self.shape)
+            dP_ext, _ = from_entries(dP_dJbar, None, self.model, self.shape)
+            dJ_ext, _ = from_entries(J[:, None] * FinvT, None, self.model, self.shape)
+            u = self.assembler.cell_vectors(dP_ext)
+            w = self.assembler.cell_vectors(dJ_ext, test=False) / np.sum(dV, axis=1)
+            return self._tangent_matrix(A_ext, (u, w))
+
+        return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
+                          form_tangent if tangent else None)
 
     def _tangent_matrix(self, A_ext, rank_one=None):
         """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w`` (summed

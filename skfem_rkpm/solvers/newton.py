@@ -368,15 +368,23 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     tally = {"iterations": 0} if tally is None else tally
 
     def state(d):
+        """``(evaluation, tangent, r, relative residual)`` at ``d``; ``tangent()``
+        forms the solid's tangent (only for the states that need an update)
+        and adds the contributions' ones."""
         ev = problem.evaluate(d)
-        f_int, K = ev.f_int, ev.K
+        f_int, K_extra = ev.f_int, []
         # each force on its own sets the scale: internal and contact forces
         # may cancel each other when no load is prescribed
         ref = max(np.linalg.norm(f_int), np.linalg.norm(f_ext), 1e-300)
         for contribution in contributions:
             f_c, K_c = contribution.evaluate(d, t)
             ref = max(ref, np.linalg.norm(f_c))
-            f_int, K = f_int + f_c, K + K_c
+            f_int = f_int + f_c
+            K_extra.append(K_c)
+
+        def tangent():
+            return sum(K_extra, ev.K)
+
         r = f_ext - f_int
         rel = np.linalg.norm(fit.out_of_balance(r)) / ref
         if not np.isfinite(rel):
@@ -384,7 +392,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
             where = f"first at unknown {bad[0]}" if bad.size else "its norm overflows"
             raise NonFiniteError(f"the out-of-balance force is not finite ({where})",
                                  bad)
-        return ev, K, r, rel
+        return ev, tangent, r, rel
 
     gap_tol = 1e-12 * max(np.abs(g).max(initial=0), 1.0)
     d = d.copy()
@@ -394,7 +402,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     for it in range(1, max_iterations + 1):
         tally["iterations"] += 1
         gap = g - C @ d
-        delta = _update(current[1], current[2], C, gap, linear_solver, contributions)
+        delta = _update(current[1](), current[2], C, gap, linear_solver, contributions)
         energy = abs(delta @ current[2])
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)

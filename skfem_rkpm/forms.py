@@ -46,7 +46,7 @@ from skfem.element import DiscreteField, ElementVector
 
 from .assembly import Assembler, Layout, layout
 
-__all__ = ["asm", "pointwise_operator", "SlowAssemblyWarning", "CorrectedTrialWarning"]
+__all__ = ["asm", "check_quadrature", "pointwise_operator", "SlowAssemblyWarning", "CorrectedTrialWarning"]
 
 #: relative tolerance of the check that a form is (bi)linear in its arguments
 LINEARITY_RTOL = 1e-9
@@ -127,6 +127,7 @@ def assemble(form, ubasis, vbasis=None, **kwargs):
     form = _as_form(form)
     if isinstance(form, BilinearForm):
         vbasis = ubasis if vbasis is None else vbasis
+        check_quadrature(ubasis, vbasis)
         reason = _why_slow(form, ubasis, vbasis)
         if reason is None:
             result = _bilinear(form, ubasis, vbasis, kwargs)
@@ -159,19 +160,49 @@ def _warn_slow(reason, *bases):
                       f"(slow on RK bases): {reason}", SlowAssemblyWarning, stacklevel=4)
 
 
+def check_quadrature(ubasis, vbasis):
+    """Refuse a trial and a test basis on different cells or quadrature points.
+
+    scikit-fem compares only the number of points per cell; an RK basis
+    (``intorder=4`` by default) next to an FEM basis with its own default
+    (``2 * maxdeg``: 3 points per triangle for P1, where the RK basis has 6)
+    fails there, and two rules with equally many points would pass unseen.
+    The message names the fix: ``rk.with_element(elem)`` (an FEM basis on the
+    RK basis's quadrature) or ``Basis(mesh, elem, intorder=rk.intorder)``.
+    """
+    if ubasis is vbasis:
+        return
+    nqp = [b.X.shape[-1] for b in (ubasis, vbasis)]
+    nelems = [b.nelems for b in (ubasis, vbasis)]
+    same = nqp[0] == nqp[1] and nelems[0] == nelems[1] and np.allclose(
+        ubasis.X, vbasis.X, rtol=0.0, atol=1e-12) and np.allclose(
+        np.asarray(ubasis.dx), np.asarray(vbasis.dx), rtol=1e-10, atol=0.0)
+    if same:
+        return
+    rk = next((b for b in (ubasis, vbasis) if _is_rk(b)), None)
+    fix = "build both bases with the same quadrature=(X, W) and elements="
+    if rk is not None and getattr(rk, "nodal_quadrature", None) is not None:
+        fix = (f"the RK basis integrates at its particles (integration="
+               f"{rk.integration!r}); mixed RK x FEM forms need a cell scheme "
+               "(integration='vci', 'vci_symmetric' or 'gauss') and rk.with_element(elem)")
+    elif rk is not None:
+        fix = (f"take the FEM basis from the RK basis, rk.with_element(elem) (same "
+               f"cells and points), or build it as Basis(mesh, elem, "
+               f"intorder={rk.intorder}) (the RK basis's intorder)"
+               + ("" if rk.tind is None else " with the same elements="))
+    raise ValueError(
+        f"Quadrature mismatch: the trial basis has {nelems[0]} cells x {nqp[0]} "
+        f"quadrature points, the test basis {nelems[1]} x {nqp[1]}"
+        + (" at other points" if nqp[0] == nqp[1] and nelems[0] == nelems[1] else "")
+        + f"; {fix}")
+
+
 def _why_slow(form, *bases):
     """Why ``form`` on ``bases`` cannot take the fast path, or None."""
     if np.dtype(form.dtype) != np.float64:
         return f"the form has dtype {np.dtype(form.dtype)} (the fast path is real)"
     if not any(_is_rk(b) for b in bases):
         return "no RK basis"
-    nqp = [b.X.shape[-1] for b in bases]
-    if len(set(nqp)) > 1:
-        raise ValueError(
-            f"Quadrature mismatch: the trial basis has {nqp[0]} quadrature points per "
-            f"cell, the test basis {nqp[1]}; build both with the same quadrature "
-            "(an FEM Basis(..., intorder=k) next to RKBasis(..., intorder=k), or "
-            "quadrature=)")
     for b in bases:
         if not _is_rk(b):
             fields = b.basis[0]

@@ -32,6 +32,7 @@ __all__ = [
     "from_gmsh",
     "load",
     "local_spacing",
+    "mesh_vertices",
     "plane_normal",
 ]
 
@@ -271,6 +272,20 @@ def plane_normal(mesh, boundary, tol=1e-8):
 # ---------------------------------------------------------------------------
 # spacing
 # ---------------------------------------------------------------------------
+
+
+def mesh_vertices(mesh):
+    """The vertex coordinates of a mesh, the default particles.
+
+    ``mesh.p`` itself for linear meshes; for quadratic meshes (``MeshTri2``,
+    ``MeshQuad2``, ...), whose ``p`` also holds the mid-edge (mid-face,
+    centre) nodes after the vertices, only its first ``mesh.nvertices``
+    columns: the extra nodes are no particles.
+    """
+    elem = type(mesh).elem()
+    if elem.edge_dofs or elem.facet_dofs or elem.interior_dofs:
+        return mesh.p[:, :mesh.nvertices]
+    return mesh.p
 
 
 def local_spacing(mesh):

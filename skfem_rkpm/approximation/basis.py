@@ -20,9 +20,10 @@ import scipy.sparse as sp
 from skfem.assembly.basis import AbstractBasis
 from skfem.element import DiscreteField
 
+from .basis_views import CellViews, FacetViews
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
-from ..meshes import local_spacing
+from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
 from .shape import ShapeTable, coordinates, rk_shape_functions
 
@@ -245,7 +246,7 @@ def _check_distinct(nodes, radius):
             "singular; remove the duplicate vertices or particles")
 
 
-class RKBasis(_RKBase):
+class RKBasis(CellViews, _RKBase):
     """Reproducing kernel basis on the background cells of a scikit-fem mesh.
 
     Parameters
@@ -324,9 +325,8 @@ class RKBasis(_RKBase):
             raise ValueError(f"stabilization={stabilization} needs integration='scni' "
                              f"(not {integration!r})")
         if nodes is None:
-            coordinates(mesh.p, "mesh vertex")
-            nodes = mesh.p
-            spacing = local_spacing(mesh)
+            nodes = coordinates(mesh_vertices(mesh), "mesh vertex")
+            spacing = local_spacing(mesh)[:nodes.shape[1]]
         else:
             nodes = coordinates(nodes, "particle")
             spacing = None
@@ -531,7 +531,7 @@ class RKBasis(_RKBase):
     def _boundary_particles(self, facets):
         if callable(facets):
             return np.flatnonzero(facets(self.nodes))
-        if self.nodes is not self.mesh.p:
+        if not self.particles_are_vertices:
             raise ValueError("particles are not the mesh vertices: select them "
                              "with a callable get_dofs(lambda x: ...) or nodes=")
         if facets is None:
@@ -555,7 +555,7 @@ class RKBasis(_RKBase):
         return RKFacetBasis(self, facets, intorder)
 
 
-class RKFacetBasis(_RKBase):
+class RKFacetBasis(FacetViews, _RKBase):
     """The particles of an :class:`RKBasis` seen from boundary facets.
 
     Used for boundary integrals (pressure and traction loads) with

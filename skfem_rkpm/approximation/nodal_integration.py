@@ -54,6 +54,7 @@ import numpy as np
 import scipy.sparse as sp
 from skfem.element import DiscreteField
 
+from .basis_views import linear_mesh_class
 from .shape import ShapeTable
 
 __all__ = ["NODAL_SCHEMES", "SmoothingCells", "smoothing_cells", "boundary_rule",
@@ -393,6 +394,15 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
     -------
     NodalQuadrature
     """
+    if mesh.p.shape[1] != mesh.nvertices:
+        raise ValueError(
+            f"integration={scheme!r} builds its smoothing cells from the straight "
+            f"edges of a linear mesh, but this {type(mesh).__name__} has "
+            f"{mesh.p.shape[1] - mesh.nvertices} nodes besides its {mesh.nvertices} "
+            f"vertices; pass the linear mesh of its vertices, "
+            f"{linear_mesh_class(mesh).__name__}(mesh.p[:, :mesh.nvertices], mesh.t), "
+            "or use a cell scheme "
+            "(integration='vci'), which integrates over the curved cells")
     cells = smoothing_cells(mesh, npoints)
     nnodes = mesh.nvertices
     area = cells.cell_area

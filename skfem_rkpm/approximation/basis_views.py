@@ -1,0 +1,319 @@
+"""scikit-fem's basis idioms on RK bases: FEM partners, components, plots, subdomains.
+
+A scikit-fem user's next steps after ``asm`` read a basis in ways that an
+RK basis must answer on its own terms, because its coefficients are
+generalized displacements (Eq. 3.24), not nodal values:
+
+- ``basis.with_element(elem)``: an FEM ``CellBasis`` (``FacetBasis`` for a
+  facet basis) of ``elem`` on the same mesh, cells and quadrature points,
+  so that mixed RK x FEM forms assemble (a P0 pressure next to RK
+  velocities);
+- ``basis.with_elements(elements)``: the same RK functions integrated over
+  a subset of the cells (scikit-fem's ``elements=``);
+- ``basis.split(x)``: per component, the *nodal values* ``Λᵀx``
+  (Eq. 3.32) with a Lagrange FEM basis on the mesh vertices that reads
+  them as nodal values;
+- ``basis.refinterp(x, nrefs)``: the RK field evaluated from the RK
+  functions at the vertices of a refined mesh, and ``basis.plot(x)``,
+  ``plot3``, ``draw`` through ``skfem.visuals`` on that mesh;
+- ``facet_basis.probes(x)``, ``interpolator``: evaluation anywhere, as on
+  the cell basis.
+
+An idiom that cannot be honoured raises :class:`BasisIdiomError`, whose
+message says what to use instead.  This module knows the RK bases only by
+their attributes (``mesh``, ``nodes``, ``table``, ``nodal_values``,
+``probes``, ...), defined in :mod:`skfem_rkpm.approximation.basis`.
+"""
+
+import copy
+import importlib
+
+import numpy as np
+from skfem import CellBasis, FacetBasis
+from skfem.element import (ElementHex1, ElementLineP1, ElementQuad1, ElementTetP1,
+                           ElementTriP1)
+from skfem.mesh import MeshHex1, MeshLine1, MeshQuad1, MeshTet1, MeshTri1
+from skfem.refdom import RefHex, RefLine, RefQuad, RefTet, RefTri
+
+from .shape import ShapeTable
+
+__all__ = ["BasisIdiomError", "CellViews", "FacetViews", "lagrange_element",
+           "linear_mesh_class"]
+
+_LINEAR = {RefLine: (ElementLineP1, MeshLine1), RefTri: (ElementTriP1, MeshTri1),
+           RefQuad: (ElementQuad1, MeshQuad1), RefTet: (ElementTetP1, MeshTet1),
+           RefHex: (ElementHex1, MeshHex1)}
+
+
+class BasisIdiomError(NotImplementedError):
+    """A scikit-fem basis idiom an RK basis cannot honour as asked.
+
+    The message names what to use instead.
+    """
+
+
+def _linear(mesh):
+    try:
+        return _LINEAR[mesh.refdom]
+    except KeyError:
+        raise BasisIdiomError(f"no lowest-order Lagrange element is known for "
+                              f"{type(mesh).__name__} cells") from None
+
+
+def lagrange_element(mesh):
+    """The lowest-order Lagrange element of the cells of ``mesh`` (P1, Q1):
+    one dof per vertex, also on quadratic meshes."""
+    return _linear(mesh)[0]()
+
+
+def linear_mesh_class(mesh):
+    """The linear mesh class of the cells of ``mesh`` (MeshTri1 for MeshTri2)."""
+    return _linear(mesh)[1]
+
+
+def _select_rows(table, rows):
+    """The rows ``rows`` (evaluation points) of a shape table, and the pairs
+    they hold (indices into the table's pair arrays)."""
+    start, stop = table.indptr[rows], table.indptr[rows + 1]
+    count = stop - start
+    indptr = np.concatenate([[0], np.cumsum(count)])
+    pick = np.repeat(start - indptr[:-1], count) + np.arange(indptr[-1])
+    sub = ShapeTable(indptr, table.indices[pick], table.values[pick],
+                     None if table.grads is None else table.grads[:, pick],
+                     table.nnodes, None if table.kernel is None else table.kernel[pick])
+    return sub, pick
+
+
+class CellViews:
+    """scikit-fem's idioms on :class:`~skfem_rkpm.RKBasis` (mixed in there)."""
+
+    def _require_cells(self, idiom):
+        if getattr(self, "nodal_quadrature", None) is not None:
+            raise BasisIdiomError(
+                f"{idiom} needs the Gauss points of the mesh cells, but "
+                f"integration={self.integration!r} integrates at the particles (one "
+                "point per particle, no cells); build the RK basis with a cell scheme "
+                "(integration='vci', 'vci_symmetric' or 'gauss') for mixed RK x FEM "
+                "forms and subdomains, or an FEM basis on its own: skfem.Basis(mesh, elem)")
+
+    @property
+    def particles_are_vertices(self):
+        """Whether the particles are the mesh vertices (the default), so that
+        nodal values live on the vertices (``split``, ``get_dofs`` by name)."""
+        nv = self.mesh.nvertices
+        return self.nodes is self.mesh.p or (
+            self.nodes.shape == (self.mesh.dim(), nv)
+            and np.array_equal(self.nodes, self.mesh.p[:, :nv]))
+
+    def with_element(self, elem):
+        """An FEM basis of ``elem`` on the same mesh, cells and quadrature points.
+
+        As scikit-fem's ``CellBasis.with_element``: the result shares the
+        quadrature (``X``, ``W``, ``dx``) and the cells (``elements=``) of this
+        basis, so forms that mix RK and FEM functions assemble with
+        ``asm(form, ubasis, vbasis)``, e.g. a P0 pressure against RK
+        velocities: ``asm(div_form, rk, rk.with_element(ElementQuad0()))``.
+
+        Parameters
+        ----------
+        elem : skfem.element.Element
+            Any scikit-fem element of the mesh's reference cell.
+
+        Returns
+        -------
+        skfem.CellBasis
+            An FEM basis; its coefficients are FEM dofs (nodal values for
+            Lagrange elements), the RK basis's are RK coefficients.
+        """
+        self._require_cells("with_element")
+        return CellBasis(self.mesh, elem, mapping=self.mapping,
+                         quadrature=self.quadrature, elements=self.tind)
+
+    def with_elements(self, elements=None):
+        """The same RK functions, integrated over a subset of the cells.
+
+        scikit-fem's ``Basis(mesh, e, elements=...)`` and
+        ``basis.with_elements(...)``: forms assembled on the result integrate
+        over the cells ``elements`` only, with the dof numbering of the whole
+        basis (``N`` unchanged), so matrices of disjoint subdomains add up to
+        the matrix of their union.  The functions, and with VCI their
+        corrected gradients, are those of the whole basis (the correction is
+        built for the whole domain, not for the subdomain).
+
+        Parameters
+        ----------
+        elements : array of int, callable, str or None
+            Anything ``mesh.normalize_elements`` accepts (cell indices, a
+            callable of the cell centres, a subdomain name); None: all cells.
+
+        Returns
+        -------
+        RKBasis
+            ``tind`` holds the cell indices.
+        """
+        self._require_cells("with_elements")
+        whole = getattr(self, "_whole", None) or self
+        if elements is None:
+            return whole
+        tind = np.asarray(self.mesh.normalize_elements(elements), dtype=np.int64)
+        if tind.ndim != 1 or tind.size == 0 or tind.min() < 0 or \
+                tind.max() >= self.mesh.nelements:
+            raise ValueError(f"elements must select cells 0..{self.mesh.nelements - 1} "
+                             f"of the mesh, at least one; got {elements!r}")
+        nqp = whole.X.shape[-1]
+        rows = (tind[:, None] * nqp + np.arange(nqp)).ravel()
+        table, pick = _select_rows(whole.table, rows)
+        test_grads = (table.grads if whole.test_grads is whole.table.grads
+                      else whole.test_grads[:, pick])
+        geometry = CellBasis(self.mesh, whole.geometry.elem, mapping=whole.mapping,
+                             quadrature=whole.quadrature, elements=tind)
+        sub = copy.copy(whole)
+        sub._basis = sub._trial = None
+        sub._setup(self.mesh, geometry, table, test_grads, whole.nodes, whole.vector)
+        sub.tind = tind
+        sub._whole = whole
+        return sub
+
+    def _nodal_partner(self):
+        """The Lagrange FEM basis on the mesh vertices that reads nodal values."""
+        if not self.particles_are_vertices:
+            raise BasisIdiomError(
+                "split(x) pairs nodal values with a basis on the mesh vertices, but the "
+                "particles are not the mesh vertices; read the values at the particles "
+                "with basis.nodal_values(x) (one per particle and component, "
+                "interleaved) or anywhere with basis.probes(points) @ x")
+        elem = lagrange_element(self.mesh)
+        if getattr(self, "nodal_quadrature", None) is not None:
+            return CellBasis(self.mesh, elem, intorder=self.intorder)
+        return self.with_element(elem)
+
+    def split(self, x):
+        """Per component: its NODAL values and a basis that reads them as such.
+
+        scikit-fem's ``basis.split(x)`` returns ``(x[dofs of component c],
+        component basis)``.  RK coefficients are not nodal values, so here
+        the first entry of each pair is the component's nodal values ``Λᵀx``
+        (:meth:`nodal_values`, Eq. 3.32), one per particle, and the second
+        the lowest-order Lagrange FEM basis on the mesh vertices (P1, Q1,
+        :meth:`with_element`, same quadrature), whose dofs are exactly those
+        nodal values.  ``b.plot(u)``, ``mesh.save(point_data={"u": u})`` and
+        ``b.interpolate(u)`` then read them right; ``b.interpolate(u)`` is the
+        piecewise linear interpolant of the RK field through its nodal
+        values, not the RK field: evaluate that from the coefficients with
+        :meth:`interpolate`, :meth:`probes` or :meth:`refinterp`.
+
+        Parameters
+        ----------
+        x : ndarray, shape (N,)
+            RK coefficients.
+
+        Returns
+        -------
+        list of (ndarray, skfem.CellBasis)
+            One pair per component (one for a scalar basis).
+
+        Raises
+        ------
+        BasisIdiomError
+            If the particles are not the mesh vertices.
+        """
+        self._components(x)  # checks the length
+        values = np.asarray(self.nodal_values(x))
+        partner = self._nodal_partner()
+        return [(values[c::self.ncomp], partner) for c in range(self.ncomp)]
+
+    def refinterp(self, x, nrefs=1, Nrefs=None):
+        """The RK field on a refined mesh, evaluated from the RK functions.
+
+        As scikit-fem's ``CellBasis.refinterp``: every cell is split ``nrefs``
+        times and the field is evaluated (``probes``, not read from
+        coefficients or nodal values) at the vertices of the pieces, which are
+        repeated per cell.  With ``nrefs=0`` the values are the nodal values
+        at the cell vertices.
+
+        Parameters
+        ----------
+        x : ndarray, shape (N,)
+            RK coefficients.
+        nrefs : int
+            Refinements of each cell.
+        Nrefs : int, optional
+            Old name of ``nrefs``.
+
+        Returns
+        -------
+        mesh : skfem.Mesh
+            A linear mesh of the pieces (MeshTri1, MeshQuad1, ...), curved
+            cells of quadratic meshes mapped with their own mapping.
+        values : ndarray
+            Field values at ``mesh.p``, shape (npoints,), or component-major
+            (all first components, then all second, ...), shape
+            (ncomp*npoints,), as scikit-fem's ``refinterp`` of vector elements
+            (``skfem.visuals.matplotlib.plot`` draws 2D vectors as arrows).
+        """
+        if Nrefs is not None:
+            nrefs = Nrefs
+        meshclass = linear_mesh_class(self.mesh)
+        ref = meshclass.init_refdom().refined(nrefs)
+        X = ref.p
+        if self.mesh.dim() == 1:  # keeps duplicate points in order, as scikit-fem
+            X = (1.0 - 1e-10) * ref.p + 5e-11
+        tind = None if getattr(self, "nodal_quadrature", None) is not None else self.tind
+        points = self.mesh._mapping().F(X, tind=tind)  # (dim, ncells, nv)
+        ncells, nv = points.shape[1], points.shape[2]
+        t = (np.tile(ref.t, (1, ncells))
+             + nv * np.repeat(np.arange(ncells), ref.t.shape[1])[None, :])
+        p = points.reshape(self.mesh.dim(), -1)
+        return meshclass(p, t), self.probes(p) @ np.asarray(x)
+
+    def _visuals(self, visuals):
+        return importlib.import_module(f"skfem.visuals.{visuals}")
+
+    def plot(self, x, visuals="matplotlib", **kwargs):
+        """Plot the RK field of coefficients ``x`` through ``skfem.visuals``.
+
+        The field is evaluated on a refined mesh (:meth:`refinterp`,
+        ``nrefs=1`` unless given) and drawn by ``skfem.visuals.<visuals>.plot``
+        with the other keyword arguments (``ax``, ``colorbar``, ``shading``,
+        ...).  2D vector fields come out as arrows.
+        """
+        nrefs = kwargs.pop("nrefs", kwargs.pop("Nrefs", 1))
+        return self._visuals(visuals).plot(*self.refinterp(x, nrefs=nrefs), **kwargs)
+
+    def plot3(self, x, visuals="matplotlib", **kwargs):
+        """As :meth:`plot`, as a surface ``z = u(x, y)`` (scalar 2D fields)."""
+        nrefs = kwargs.pop("nrefs", kwargs.pop("Nrefs", 1))
+        return self._visuals(visuals).plot3(*self.refinterp(x, nrefs=nrefs), **kwargs)
+
+    def draw(self, visuals="matplotlib", **kwargs):
+        """Draw the background mesh (cells of this basis) through ``skfem.visuals``."""
+        return self._visuals(visuals).draw(self.mesh, **kwargs)
+
+
+class FacetViews:
+    """scikit-fem's idioms on :class:`~skfem_rkpm.RKFacetBasis` (mixed in there)."""
+
+    @property
+    def find(self):
+        """Indices of the facets of this basis, as scikit-fem's ``FacetBasis.find``."""
+        return self.geometry.find
+
+    def with_element(self, elem):
+        """An FEM ``FacetBasis`` of ``elem`` on the same facets and quadrature
+        points (outward normals alike), for mixed RK x FEM boundary forms."""
+        return FacetBasis(self.mesh, elem, mapping=self.mapping,
+                          quadrature=self.quadrature, facets=self.find)
+
+    def probes(self, x):
+        """Sparse matrix mapping coefficients to field values at points ``x``
+        (shape (dim, npoints)), the same as the cell basis's :meth:`probes`:
+        the facet basis has the particles of its cell basis."""
+        return self.parent.probes(x)
+
+    def interpolator(self, w):
+        """Function ``x -> field values at x`` for coefficients ``w``."""
+        return self.parent.interpolator(w)
+
+    def nodal_values(self, d):
+        """Nodal values ``Λᵀd`` (Eq. 3.32), as on the cell basis."""
+        return self.parent.nodal_values(d)

@@ -3,7 +3,7 @@
 from .assembly import Assembler, isotropic_tangent, layout
 from .forms import CorrectedTrialWarning, SlowAssemblyWarning, asm
 from .approximation.basis import RKBasis, RKFacetBasis
-from .approximation.basis_views import BasisIdiomError
+from .approximation.basis_views import BasisIdiomError, CoefficientsNotNodalError
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
 from .solvers.idioms import coefficients, condense, eigen, enforce, penalize
@@ -16,6 +16,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Assembler",
     "BasisIdiomError",
+    "CoefficientsNotNodalError",
     "CorrectedTrialWarning",
     "RKBasis",
     "RKFacetBasis",

@@ -264,3 +264,79 @@ def test_subdomain_matrices_add_up_to_the_whole(quads, integration):
     assert not moments[np.setdiff1d(np.arange(quads.nelements), left.tind)].any()
     with pytest.raises(ValueError, match="elements must select cells"):
         rk.with_elements(np.array([quads.nelements]))
+
+
+def test_elements_argument_is_with_elements(quads):
+    left = lambda x: x[0] < 1.0
+    built = RKBasis(quads, elements=left)
+    restricted = RKBasis(quads).with_elements(left)
+    np.testing.assert_array_equal(built.tind, restricted.tind)
+    K = asm(laplace, built.trial, built)
+    assert abs(K - asm(laplace, restricted.trial, restricted)).max() == 0.0
+    assert built.with_elements().nelems == quads.nelements
+
+
+def test_split_indices_and_bases_read_coefficients(quads):
+    """skfem's split_indices/split_bases pair is coefficient level: component
+    coefficients with the scalar RK basis give the component field."""
+    rk = RKBasis(quads, vector=True)
+    d = rk.project(lambda x: np.array([np.sin(2.0 * x[0]), x[0] * x[1] ** 2]))
+    field = np.asarray(rk.interpolate(d))
+    nodal = rk.nodal_values(d)
+    for c, (ix, scalar) in enumerate(zip(rk.split_indices(), rk.split_bases())):
+        np.testing.assert_array_equal(ix, np.arange(c, rk.N, 2))
+        assert scalar.N == rk.nnodes and not scalar.vector
+        np.testing.assert_allclose(np.asarray(scalar.interpolate(d[ix])), field[c],
+                                   rtol=0, atol=1e-14)
+        np.testing.assert_allclose(scalar.nodal_values(d[ix]), nodal[c::2], atol=1e-14)
+    sub = rk.with_elements([0, 3]).scalar_basis()
+    assert sub.nelems == 2 and sub.with_elements().nelems == quads.nelements
+
+
+def test_point_source_is_the_test_functions_at_the_point(quads):
+    rk = RKBasis(quads)
+    x0 = np.array([0.7, 0.35])
+    f = rk.point_source(x0)
+    assert f.sum() == pytest.approx(1.0, abs=1e-14)  # partition of unity
+    u = lambda x: 1.0 + 2.0 * x[0] - x[1]
+    assert f @ u(rk.nodes) == pytest.approx(u(x0), abs=1e-13)  # linear reproduction
+
+
+def test_dof_idioms_that_would_read_coefficients_are_loud(quads):
+    rk = RKBasis(quads, vector=True)
+    for basis in (rk, rk.boundary()):
+        for name in ("nodal_dofs", "facet_dofs", "edge_dofs", "interior_dofs", "dofs"):
+            with pytest.raises(skfem_rkpm.CoefficientsNotNodalError,
+                               match=r"nodal_values\(x\)\[c::2\]"):
+                getattr(basis, name)
+            assert not hasattr(basis, name)
+    fb = rk.boundary()
+    for call in (lambda: fb.split(np.zeros(rk.N)), lambda: fb.project(lambda x: x[0]),
+                 lambda: fb.trace(np.zeros(rk.N))):
+        with pytest.raises(BasisIdiomError) as err:
+            call()
+        assert "basis." in str(err.value)
+
+
+def test_composite_basis_with_fem_is_the_block_matrix(quads):
+    """``rk * p0`` (scikit-fem's CompositeBasis) assembles the block matrix of
+    the four pairings; a VCI basis (two sets of gradients) is refused."""
+    import scipy.sparse as sp
+
+    rk = RKBasis(quads, integration="vci_symmetric")
+    p0 = rk.with_element(ElementQuad0())
+    form = BilinearForm(lambda u, p, v, q, w: dot(u.grad, v.grad) + u * q
+                        + 2.0 * p * v + 3.0 * p * q)
+    blocks = [[asm(BilinearForm(lambda u, v, w: dot(u.grad, v.grad)), rk),
+               asm(BilinearForm(lambda p, v, w: 2.0 * p * v), p0, rk)],
+              [asm(BilinearForm(lambda u, q, w: u * q), rk, p0),
+               asm(BilinearForm(lambda p, q, w: 3.0 * p * q), p0)]]
+    expected = sp.bmat(blocks)
+    for assemble in (asm, skfem_rkpm.asm):
+        A = assemble(form, rk * p0)
+        assert A.shape == (rk.N + p0.N,) * 2
+        assert abs(A - expected).max() < 1e-14 * abs(expected).max()
+    with pytest.raises(BasisIdiomError, match="vci_symmetric"):
+        RKBasis(quads) * p0
+    with pytest.raises(ValueError, match="same cells and quadrature"):
+        rk * Basis(quads, ElementQuad0(), intorder=2)

@@ -299,11 +299,15 @@ class RKBasis(CellViews, _RKBase):
         solid adds ``α Σ_k A_k (B_k - B_L)ᵀ C (B_k - B_L)`` with the piece
         gradients of the smoothing cells and the elastic moduli ``C``
         (:class:`skfem_rkpm.mechanics.problem.SolidProblem`).  0 for plain SCNI.
+    elements : optional
+        Integrate over these cells only (scikit-fem's ``elements=``), the
+        same as ``RKBasis(mesh, ...).with_elements(elements)``.
     """
 
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
                  support_shape="radial", intorder=4, integration="vci",
-                 nodes=None, radius=None, axisymmetric=False, stabilization=0.0):
+                 nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
+                 elements=None):
         if integration not in INTEGRATION_SCHEMES:
             raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
                              f"not {integration!r}")
@@ -368,6 +372,7 @@ class RKBasis(CellViews, _RKBase):
         self.nodal_quadrature = None
         if integration in NODAL_SCHEMES:
             self._setup_nodal(mesh, nodes, vector)
+            self._restrict(elements)
             return
 
         try:
@@ -395,6 +400,7 @@ class RKBasis(CellViews, _RKBase):
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric")
         self._setup(mesh, geometry, table, test_grads, nodes, vector)
+        self._restrict(elements)
 
     @property
     def segment_points(self):

@@ -37,7 +37,7 @@ from skfem.refdom import RefHex, RefLine, RefQuad, RefTet, RefTri
 
 from .shape import ShapeTable
 
-__all__ = ["BasisIdiomError", "CellViews", "FacetViews", "lagrange_element",
+__all__ = ["BasisIdiomError", "CoefficientsNotNodalError", "CellViews", "FacetViews", "lagrange_element",
            "linear_mesh_class"]
 
 _LINEAR = {RefLine: (ElementLineP1, MeshLine1), RefTri: (ElementTriP1, MeshTri1),
@@ -49,6 +49,13 @@ class BasisIdiomError(NotImplementedError):
     """A scikit-fem basis idiom an RK basis cannot honour as asked.
 
     The message names what to use instead.
+    """
+
+
+class CoefficientsNotNodalError(BasisIdiomError, AttributeError):
+    """An idiom that would read RK coefficients as nodal values (``x[basis.nodal_dofs[0]]``).
+
+    Also an ``AttributeError``: ``hasattr(basis, "nodal_dofs")`` is False.
     """
 
 
@@ -84,7 +91,34 @@ def _select_rows(table, rows):
     return sub, pick
 
 
-class CellViews:
+class _DofIdioms:
+    """Dof idioms of both RK bases: component indices, and loud errors where
+    scikit-fem would hand out dofs that read coefficients as nodal values."""
+
+    def _not_nodal(self, name):
+        raise CoefficientsNotNodalError(
+            f"an RK basis has no {name}: its coefficients are not nodal values, and "
+            f"x[basis.{name}[c]] would read coefficients; the nodal values of component "
+            f"c are basis.nodal_values(x)[c::{self.ncomp}] (or basis.split(x) on the "
+            "cell basis); dof numbers come from basis.get_dofs(...) and "
+            "basis.split_indices()")
+
+    nodal_dofs = property(lambda self: self._not_nodal("nodal_dofs"))
+    facet_dofs = property(lambda self: self._not_nodal("facet_dofs"))
+    edge_dofs = property(lambda self: self._not_nodal("edge_dofs"))
+    interior_dofs = property(lambda self: self._not_nodal("interior_dofs"))
+    dofs = property(lambda self: self._not_nodal("dofs"))
+
+    def split_indices(self):
+        """Coefficient numbers of each component: ``[arange(c, N, ncomp)]``.
+
+        ``x[ix]`` are the coefficients of that component (for the scalar
+        bases of :meth:`split_bases`), not its nodal values.
+        """
+        return [np.arange(c, self.N, self.ncomp) for c in range(self.ncomp)]
+
+
+class CellViews(_DofIdioms):
     """scikit-fem's idioms on :class:`~skfem_rkpm.RKBasis` (mixed in there)."""
 
     def _require_cells(self, idiom):
@@ -173,6 +207,77 @@ class CellViews:
         sub.tind = tind
         sub._whole = whole
         return sub
+
+    def _restrict(self, elements):
+        """``RKBasis(..., elements=...)``: become ``with_elements(elements)``
+        of the basis just built (nothing if ``elements`` is None)."""
+        if elements is not None:
+            self.__dict__.update(copy.copy(self).with_elements(elements).__dict__)
+
+    def scalar_basis(self):
+        """The scalar RK basis of the same particles, cells and quadrature
+        (this basis itself if it is scalar): the basis of one component."""
+        if self.ncomp == 1:
+            return self
+        scalar = copy.copy(self)
+        scalar.ncomp, scalar.Nbfun = 1, self.element_nodes.shape[0]
+        scalar._basis = scalar._trial = None
+        scalar._nodal_matrix = self._nodal_matrix[::self.ncomp, ::self.ncomp]
+        whole = getattr(self, "_whole", None)
+        scalar._whole = None if whole is None else whole.scalar_basis()
+        return scalar
+
+    def split_bases(self):
+        """The basis of each component's coefficients (``split_indices``):
+        :meth:`scalar_basis`, once per component."""
+        return [self.scalar_basis()] * self.ncomp
+
+    def point_source(self, x):
+        """Load vector of a unit point source at ``x`` (shape (dim,)).
+
+        The test functions at ``x``, ``Ψ_I(x)``, as scikit-fem's
+        ``CellBasis.point_source`` (first component of a vector basis).
+        """
+        return self.probes(np.asarray(x, dtype=float)[:, None]).toarray()[0]
+
+    def __mul__(self, other):
+        return self._composite(other, equal_dofnum=False)
+
+    def __matmul__(self, other):
+        return self._composite(other, equal_dofnum=True)
+
+    def _composite(self, other, equal_dofnum):
+        """scikit-fem's ``vbasis * pbasis`` with an RK basis in it.
+
+        scikit-fem's ``CompositeBasis`` asks its bases for ``elem``, which an
+        RK basis has not; the same object is built here after the same
+        checks.  A composite basis is trial and test basis at once, so the
+        RK basis must have one set of gradients for both: not
+        ``integration="vci"``.
+        """
+        from skfem.assembly.basis.composite_basis import CompositeBasis
+
+        bases = (self, other)
+        for b in bases:
+            if getattr(b, "integration", None) == "vci":
+                raise BasisIdiomError(
+                    "a composite basis serves as trial and test basis at once, but an "
+                    "integration='vci' basis has other gradients on the trial side "
+                    "(basis.trial); build it with integration='vci_symmetric' (or "
+                    "'gauss'), or assemble the blocks, asm(a, rk.trial, rk), "
+                    "asm(b, rk.trial, p), ..., and join them with scipy.sparse.bmat")
+        if not isinstance(other, (CellBasis, CellViews)):
+            raise BasisIdiomError(f"an RK basis composes with cell bases (RKBasis, "
+                                  f"skfem.CellBasis), not with {type(other).__name__}")
+        if len(other.W) != len(self.W) or other.nelems != self.nelems:
+            raise ValueError(
+                f"the bases of a composite basis need the same cells and quadrature: "
+                f"{self.nelems} x {len(self.W)} and {other.nelems} x {len(other.W)}; "
+                "take the FEM basis from the RK basis, rk.with_element(elem)")
+        composite = CompositeBasis.__new__(CompositeBasis)
+        composite.bases, composite.equal_dofnum = bases, equal_dofnum
+        composite._element_dofs = composite._basis = None
+        return composite
 
     def _nodal_partner(self):
         """The Lagrange FEM basis on the mesh vertices that reads nodal values."""
@@ -290,7 +395,7 @@ class CellViews:
         return self._visuals(visuals).draw(self.mesh, **kwargs)
 
 
-class FacetViews:
+class FacetViews(_DofIdioms):
     """scikit-fem's idioms on :class:`~skfem_rkpm.RKFacetBasis` (mixed in there)."""
 
     @property
@@ -317,3 +422,23 @@ class FacetViews:
     def nodal_values(self, d):
         """Nodal values ``Λᵀd`` (Eq. 3.32), as on the cell basis."""
         return self.parent.nodal_values(d)
+
+    def split(self, x):
+        """Refused: split the coefficients with the cell basis."""
+        raise BasisIdiomError("split the coefficients with the cell basis, "
+                              "basis.split(x) (nodal values per component)")
+
+    def project(self, interp, **kwargs):
+        """Refused: an RK facet basis has no boundary-only dofs to project on."""
+        raise BasisIdiomError(
+            "an RK facet basis has no boundary-only dofs (every particle whose support "
+            "reaches the boundary has a function there, interior ones too); project "
+            "with the cell basis, basis.project(f), or prescribe boundary values with "
+            "skfem_rkpm.solve / skfem_rkpm.condense(..., basis=basis)")
+
+    def trace(self, *args, **kwargs):
+        """Refused: evaluate the RK field on the boundary instead."""
+        raise BasisIdiomError(
+            "an RK field has no trace in a boundary finite element space; evaluate it "
+            "on the facets with facet_basis.interpolate(x) (quadrature points) or "
+            "facet_basis.probes(points) @ x")

@@ -4,6 +4,7 @@ from .assembly import Assembler, isotropic_tangent, layout
 from .forms import CorrectedTrialWarning, SlowAssemblyWarning, asm
 from .approximation.basis import RKBasis, RKFacetBasis
 from .approximation.basis_views import BasisIdiomError, CoefficientsNotNodalError
+from .approximation.interior_facet_basis import RKInteriorFacetBasis
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
 from .solvers.idioms import coefficients, condense, eigen, enforce, penalize
@@ -20,6 +21,7 @@ __all__ = [
     "CorrectedTrialWarning",
     "RKBasis",
     "RKFacetBasis",
+    "RKInteriorFacetBasis",
     "ShapeTable",
     "SingularMomentError",
     "SlowAssemblyWarning",

@@ -340,3 +340,34 @@ def test_composite_basis_with_fem_is_the_block_matrix(quads):
         RKBasis(quads) * p0
     with pytest.raises(ValueError, match="same cells and quadrature"):
         rk * Basis(quads, ElementQuad0(), intorder=2)
+
+
+def test_interior_facet_basis_jump_terms_against_fem():
+    """∫_F (u·n) [q] over the interior facets, q a DG P1 test function on
+    either side: for the linear U the RK and P1 trial functions agree, so the
+    jump terms agree to round-off; the facet lengths are scikit-fem's."""
+    from skfem import ElementTriDG, InteriorFacetBasis
+
+    m = MeshTri1().refined(3)
+    rk = RKBasis(m, vector=True)
+    sides = [skfem_rkpm.RKInteriorFacetBasis(rk, side=s) for s in (0, 1)]
+    dg = [b.with_element(ElementTriDG(ElementTriP1())) for b in sides]
+    p1 = [b.with_element(ElementVector(ElementTriP1())) for b in sides]
+    assert all(isinstance(b, InteriorFacetBasis) for b in dg + p1)
+    assert all(np.array_equal(b.X, sides[0].X) for b in dg + p1)
+    flux = BilinearForm(lambda u, q, w: dot(u, w.n) * q)
+    d = linear_coefficients(rk, U)
+    nodal = U(p1[0].doflocs[:, ::2]).T.ravel()
+    jump_rk = sum((-1) ** s * (asm(flux, sides[s], dg[s]) @ d) for s in (0, 1))
+    jump_fem = sum((-1) ** s * (asm(flux, p1[s], dg[s]) @ nodal) for s in (0, 1))
+    assert np.abs(jump_rk).max() > 0.1
+    np.testing.assert_allclose(jump_rk, jump_fem, rtol=0, atol=1e-13)
+    length = Functional(lambda w: 1.0 + 0.0 * w.x[0])
+    fem = InteriorFacetBasis(m, ElementTriP1(), intorder=rk.intorder)
+    assert length.assemble(sides[1]) == pytest.approx(length.assemble(fem), rel=1e-14)
+    np.testing.assert_array_equal(np.asarray(sides[0].interpolate(d)),
+                                  np.asarray(sides[1].interpolate(d)))
+    with pytest.raises(ValueError, match="on the boundary"):
+        skfem_rkpm.RKInteriorFacetBasis(rk, facets=m.boundary_facets(), side=0)
+    with pytest.raises(ValueError, match="side must be 0 or 1"):
+        skfem_rkpm.RKInteriorFacetBasis(rk, side=2)

@@ -371,3 +371,14 @@ def test_interior_facet_basis_jump_terms_against_fem():
         skfem_rkpm.RKInteriorFacetBasis(rk, facets=m.boundary_facets(), side=0)
     with pytest.raises(ValueError, match="side must be 0 or 1"):
         skfem_rkpm.RKInteriorFacetBasis(rk, side=2)
+
+
+def test_projection_on_a_subdomain_is_exact_for_linear_fields(quads):
+    """Particles whose supports reach the subdomain carry the L² projection
+    (exact for a linear field: it is in the space), the others 0."""
+    sub = RKBasis(quads).with_elements(lambda x: x[0] < 0.6)
+    u = lambda x: 1.0 + 2.0 * x[0] - x[1]
+    d = sub.project(u)
+    seen = np.unique(sub.element_nodes)
+    np.testing.assert_allclose(d[seen], u(sub.nodes[:, seen]), rtol=0, atol=1e-12)
+    assert len(seen) < sub.nnodes and not d[np.setdiff1d(np.arange(sub.nnodes), seen)].any()

@@ -485,7 +485,8 @@ class RKBasis(CellViews, _RKBase):
 
         ``interp`` is a callable of the global quadrature coordinates
         (shape (dim, nelems, nqp)) or an array of values at the quadrature
-        points, shaped like :meth:`interpolate` returns.
+        points, shaped like :meth:`interpolate` returns.  Particles whose
+        supports miss every cell of the basis (``elements=``) get 0.
         """
         from scipy.sparse.linalg import splu
 
@@ -498,7 +499,9 @@ class RKBasis(CellViews, _RKBase):
         w = self.dx.ravel()
         M = (A.T @ sp.diags(w) @ A).tocsc()
         rhs = A.T @ (values.reshape(self.ncomp, -1) * w).T
-        coeffs = splu(M, permc_spec="MMD_AT_PLUS_A").solve(np.asarray(rhs))
+        seen, coeffs = np.flatnonzero(M.diagonal() > 0), np.zeros(rhs.shape)
+        coeffs[seen] = splu(M[seen][:, seen], permc_spec="MMD_AT_PLUS_A").solve(
+            np.asarray(rhs)[seen])
         return coeffs.reshape(-1)
 
     # -- dofs ---------------------------------------------------------------

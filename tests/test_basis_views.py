@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import skfem
 from skfem import (Basis, BilinearForm, ElementQuad0, ElementQuad1, ElementTriP1,
+                   ElementTriP2,
                    ElementVector, FacetBasis, Functional, LinearForm, MeshQuad1,
                    MeshQuad2, MeshTri1, MeshTri2, asm)
 from skfem.helpers import div, dot
@@ -231,6 +232,11 @@ def test_curved_quadratic_mesh_passes_the_patch_test(integration):
                          D=D, x=u(rk.nodes))
     grad = rk.interpolate(d).grad
     assert np.abs(grad - np.array([2.0, -3.0])[:, None, None]).max() < 1e-11
+    # refinterp follows the curved cells, as scikit-fem's P2 refinterp does
+    M, values = rk.refinterp(d, nrefs=2)
+    M_fem, _ = Basis(m, ElementTriP2()).refinterp(np.zeros(m.p.shape[1]), nrefs=2)
+    np.testing.assert_allclose(M.p, M_fem.p, atol=1e-14)
+    np.testing.assert_allclose(values, u(M.p), atol=1e-11)
 
 
 def test_nodal_integration_refuses_quadratic_meshes_with_the_fix():

@@ -213,6 +213,16 @@ def test_straight_quadratic_mesh_uses_its_vertices_as_particles(quadratic, linea
     assert abs(K - K_lin).max() < 1e-13 * abs(K_lin).max()
     (values, partner), = rk.split(np.ones(rk.N))
     assert partner.N == m.nvertices and np.allclose(values, 1.0, atol=1e-14)
+    named = quadratic().refined(2).with_defaults()
+    left = RKBasis(named).get_dofs("left")
+    np.testing.assert_array_equal(left, np.flatnonzero(named.p[0, :named.nvertices] == 0))
+    # all nodes as particles, on request: not the vertices any more
+    every = RKBasis(named, nodes=named.p, radius=0.3)
+    assert every.nnodes == named.p.shape[1] and not every.particles_are_vertices
+    with pytest.raises(BasisIdiomError, match="not the mesh vertices"):
+        every.split(np.zeros(every.N))
+    with pytest.raises(ValueError, match="not the mesh vertices"):
+        every.get_dofs("left")
 
 
 @pytest.mark.parametrize("integration", ["vci", "vci_symmetric"])

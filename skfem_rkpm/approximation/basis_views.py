@@ -134,10 +134,10 @@ class CellViews(_DofIdioms):
     def particles_are_vertices(self):
         """Whether the particles are the mesh vertices (the default), so that
         nodal values live on the vertices (``split``, ``get_dofs`` by name)."""
-        nv = self.mesh.nvertices
-        return self.nodes is self.mesh.p or (
-            self.nodes.shape == (self.mesh.dim(), nv)
-            and np.array_equal(self.nodes, self.mesh.p[:, :nv]))
+        p, nv = self.mesh.p, self.mesh.nvertices
+        if self.nodes.shape != (p.shape[0], nv):
+            return False  # also all nodes of a quadratic mesh as particles
+        return self.nodes is p or np.array_equal(self.nodes, p[:, :nv])
 
     def with_element(self, elem):
         """An FEM basis of ``elem`` on the same mesh, cells and quadrature points.

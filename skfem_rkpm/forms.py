@@ -46,7 +46,7 @@ from skfem.element import DiscreteField, ElementVector
 
 from .assembly import Assembler, Layout, layout
 
-__all__ = ["asm", "check_quadrature", "pointwise_operator", "SlowAssemblyWarning", "CorrectedTrialWarning"]
+__all__ = ["asm", "check_fields", "check_quadrature", "pointwise_operator", "SlowAssemblyWarning", "CorrectedTrialWarning"]
 
 #: relative tolerance of the check that a form is (bi)linear in its arguments
 LINEARITY_RTOL = 1e-9
@@ -125,6 +125,7 @@ def _coo(result):
 def assemble(form, ubasis, vbasis=None, **kwargs):
     """One form on one trial (and test) basis; see :func:`asm`."""
     form = _as_form(form)
+    check_fields(ubasis, kwargs)
     if isinstance(form, BilinearForm):
         vbasis = ubasis if vbasis is None else vbasis
         check_quadrature(ubasis, vbasis)
@@ -158,6 +159,24 @@ def _warn_slow(reason, *bases):
     if any(_is_rk(b) for b in bases if b is not None):
         warnings.warn(f"assembled with scikit-fem's loop over pairs of local functions "
                       f"(slow on RK bases): {reason}", SlowAssemblyWarning, stacklevel=4)
+
+
+def check_fields(basis, fields):
+    """Refuse ``DiscreteField`` arguments (``w``) not at the points of ``basis``.
+
+    A field interpolated by an FEM basis with scikit-fem's default quadrature
+    (3 points per P1 triangle) next to an RK basis (6): the message names
+    ``rk.with_element(elem).interpolate(x)``, which evaluates it at the RK
+    basis's points.
+    """
+    where = (basis.nelems, basis.X.shape[-1])
+    for name, field in fields.items():
+        if isinstance(field, DiscreteField) and np.shape(field)[-2:] != where:
+            raise ValueError(
+                f"Quadrature mismatch: {name!r} is given at {np.shape(field)[-2]} "
+                f"cells x {np.shape(field)[-1]} points, the basis has "
+                f"{where[0]} x {where[1]}; interpolate it at the basis's points, e.g. "
+                f"basis.with_element(elem).interpolate(x) for FEM dofs x")
 
 
 def check_quadrature(ubasis, vbasis):

@@ -106,6 +106,15 @@ def test_fem_partner_with_other_quadrature_is_refused_with_the_fix():
         assert M.shape == (mesh.nvertices, rk.N)
         np.testing.assert_allclose(M @ np.ones(rk.N),
                                    asm(mass, fem) @ np.ones(fem.N), atol=1e-14)
+    # an FEM field as a form argument: at the RK points, or a message
+    x = mesh.p[0] ** 2
+    load = LinearForm(lambda v, w: w.u * v)
+    with pytest.raises(ValueError, match=r"'u' is given at 128 cells x 3 points.*"
+                                         r"with_element\(elem\).interpolate"):
+        skfem_rkpm.asm(load, rk, u=Basis(mesh, ElementTriP1()).interpolate(x))
+    fem = rk.with_element(ElementTriP1())
+    f = skfem_rkpm.asm(load, rk, u=fem.interpolate(x))
+    assert f.sum() == pytest.approx(asm(load, fem, u=fem.interpolate(x)).sum(), rel=1e-13)
 
 
 def test_nodal_schemes_refuse_fem_partners_loudly(quads):

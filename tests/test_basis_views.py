@@ -171,6 +171,8 @@ def test_refinterp_evaluates_the_rk_field_on_the_fem_refined_mesh(quads):
     np.testing.assert_allclose(values, u(M.p), rtol=0, atol=1e-10)
     assert np.abs(fem_values - u(M.p)).max() > 1e-3
     # nrefs=0: the values are the nodal values at the cell vertices
+    with pytest.raises(ValueError, match="coefficient vector has length"):
+        rk.refinterp(d[:-1])
     M0, at_vertices = rk.refinterp(d, 0)
     np.testing.assert_allclose(at_vertices, rk.nodal_values(d)[quads.t.T.ravel()],
                                atol=1e-12)

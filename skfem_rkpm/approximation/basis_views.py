@@ -358,6 +358,7 @@ class CellViews(_DofIdioms):
         """
         if Nrefs is not None:
             nrefs = Nrefs
+        self._components(x)  # checks the length
         meshclass = linear_mesh_class(self.mesh)
         ref = meshclass.init_refdom().refined(nrefs)
         X = ref.p

@@ -25,7 +25,8 @@ from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
-from .shape import ShapeTable, coordinates, rk_shape_functions
+from .interpolating import primitive_radius, shape_functions
+from .shape import ShapeTable, coordinates
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
@@ -302,12 +303,15 @@ class RKBasis(CellViews, _RKBase):
     elements : optional
         Integrate over these cells only (scikit-fem's ``elements=``), the
         same as ``RKBasis(mesh, ...).with_elements(elements)``.
+    interpolating : bool
+        ``Ψ_I(X_J) = δ_IJ`` (:mod:`skfem_rkpm.approximation.interpolating`):
+        coefficients are nodal values, ``nodal_matrix`` is the identity.
     """
 
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
                  support_shape="radial", intorder=4, integration="vci",
                  nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
-                 elements=None):
+                 elements=None, interpolating=False):
         if integration not in INTEGRATION_SCHEMES:
             raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
                              f"not {integration!r}")
@@ -361,6 +365,8 @@ class RKBasis(CellViews, _RKBase):
                              + (" (a mesh vertex without cells has no spacing: remove "
                                 "unused vertices)" if from_spacing else ""))
         _check_distinct(nodes, self.radius)
+        self.interpolating = bool(interpolating)
+        self._primitive = primitive_radius(nodes, self.radius) if interpolating else None
         # a too small support is reported as a normalized support only when
         # the radii come from it; explicit radii get a growth factor
         self.dilation = support if from_spacing else None
@@ -419,10 +425,10 @@ class RKBasis(CellViews, _RKBase):
         self._setup(mesh, q.geometry, q.table, q.table.grads, nodes, vector)
 
     def _shape_table(self, x, nodes=None, gradients=True):
-        return rk_shape_functions(
+        return shape_functions(
             x, self.nodes if nodes is None else nodes, self.radius, self.order,
             self.kernel, self.support_shape, gradients=gradients,
-            dilation=self.dilation,
+            dilation=self.dilation, primitive=self._primitive,
         )
 
     @property

@@ -126,7 +126,8 @@ def build(scene, method=None, trust_geo=False):
                         integration=disc["integration"], axisymmetric=model == "axisymmetric",
                         radius=(spacing_radius(mesh, disc)
                                 if disc["support"] is not None else None),
-                        support=disc["dilation"], stabilization=stabilization or 0.0)
+                        support=disc["dilation"], stabilization=stabilization or 0.0,
+                        interpolating=disc["interpolating"])
     else:
         element = ELEMENTS[disc["element"] or LINEAR_OF.get(type(mesh).__name__, "quad1")]()
         if element.refdom != mesh.refdom:

@@ -99,6 +99,9 @@ SCHEMA = {
         "integration": Key("str", "vci", choices=("vci", "vci_symmetric", "gauss", "scni", "dni"),
                            doc="rkpm: integration; scni/dni: one point per particle "
                                "(2D meshes; see docs/nodal_integration.md)"),
+        "interpolating": Key("bool", False,
+                             doc="rkpm: interpolating RK functions, Ψ_I(X_J) = δ_IJ: the "
+                                 "coefficients are nodal values (see docs/rk_basis.md)"),
         "stabilization": Key("float", check=_non_negative,
                              doc="rkpm, scni: α of the modified SCNI stabilization "
                                  f"(default {DEFAULT_STABILIZATION}; 0: plain SCNI)"),

@@ -1,0 +1,206 @@
+"""Interpolating RK basis against the standard one: accuracy and build cost.
+
+Poisson's problem -Δu = f with u = sin(2x) eʸ on the unit square (n × n
+quadrilaterals, uniform and with interior vertices moved at random by up to
+0.3 of the spacing), u prescribed at every boundary particle:
+
+- standard RK (VCI) through ``skfem_rkpm.solve`` (the transformation method),
+- interpolating RK (VCI) through scikit-fem's own ``condense``,
+- bilinear FEM (Q1) through scikit-fem's ``condense``,
+
+L² and H¹-seminorm errors with the basis' Gauss rule (degree 4).  Then the
+CPU time (``time.process_time``, median of ``--repeat``) of building the
+scalar basis on the square and the vector basis on n³ hexahedra, standard
+and interpolating; of the shape table alone (numpy path, both); and the
+errors at 32² for several normalized supports.
+
+Run:  python benchmarks/interpolating_basis.py          (~1 minute)
+"""
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from skfem import (Basis, ElementQuad1, LinearForm, MeshHex, MeshQuad, asm,  # noqa: E402
+                   condense, solve)
+from skfem.models.poisson import laplace  # noqa: E402
+
+import skfem_rkpm  # noqa: E402
+from skfem_rkpm import RKBasis, rk_shape_functions  # noqa: E402
+from skfem_rkpm.approximation.interpolating import interpolating_shape_functions  # noqa: E402
+from skfem_rkpm.meshes import local_spacing  # noqa: E402
+
+
+def exact(x):
+    return np.sin(2 * x[0]) * np.exp(x[1])
+
+
+def exact_grad(x):
+    return np.array([2 * np.cos(2 * x[0]) * np.exp(x[1]), np.sin(2 * x[0]) * np.exp(x[1])])
+
+
+@LinearForm
+def load(v, w):
+    return 3 * np.sin(2 * w.x[0]) * np.exp(w.x[1]) * v
+
+
+def square(n, distortion=0.0, seed=0):
+    mesh = MeshQuad.init_tensor(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1))
+    if distortion:
+        p = mesh.p.copy()
+        inner = np.setdiff1d(np.arange(p.shape[1]), mesh.boundary_nodes())
+        rng = np.random.default_rng(seed)
+        p[:, inner] += distortion / n * rng.uniform(-1, 1, (2, len(inner)))
+        mesh = MeshQuad(p, mesh.t)
+    return mesh
+
+
+def errors(basis, d):
+    field = basis.interpolate(d)
+    x = np.asarray(basis.global_coordinates())
+    w = basis.dx
+    return (np.sqrt(np.sum((np.asarray(field) - exact(x)) ** 2 * w)),
+            np.sqrt(np.sum(((field.grad - exact_grad(x)) ** 2).sum(0) * w)))
+
+
+def solve_standard(mesh, support=2.0, order=1, solution=exact, source=load, measure=errors):
+    basis = RKBasis(mesh, support=support, order=order)
+    K, f, D = asm(laplace, basis.trial, basis), asm(source, basis), basis.get_dofs()
+    return measure(basis, skfem_rkpm.solve(K, f, basis, D=D, x=solution(basis.nodes[:, D])))
+
+
+def solve_plain(basis, solution=exact, source=load, measure=errors):
+    """As a scikit-fem script: coefficients are nodal values."""
+    K = asm(laplace, getattr(basis, "trial", basis), basis)
+    D = basis.get_dofs()
+    return measure(basis, solve(*condense(K, asm(source, basis), x=solution(basis.doflocs),
+                                          D=D)))
+
+
+def linear(x):
+    return 1.0 + 2.0 * x[0] - 3.0 * x[1]
+
+
+@LinearForm
+def no_load(v, w):
+    return 0.0 * v
+
+
+def boundary_miss(basis, d, solution=exact):
+    """Largest |u_h - u| at the boundary particles and at the facet midpoints."""
+    D = basis.get_dofs()
+    mesh = basis.mesh
+    facets = mesh.facets[:, mesh.boundary_facets()]
+    mid = 0.5 * (mesh.p[:, facets[0]] + mesh.p[:, facets[1]])
+    at = lambda x: basis.probes(x) @ d - solution(x)  # noqa: E731
+    return np.abs(at(basis.nodes[:, D])).max(), np.abs(at(mid)).max()
+
+
+def field_miss(basis, d):
+    """Largest |u_h - u| at the quadrature points for the linear u."""
+    return (np.abs(np.asarray(basis.interpolate(d))
+                   - linear(np.asarray(basis.global_coordinates()))).max(),)
+
+
+def timed(fun, repeat):
+    times = []
+    for _ in range(repeat):
+        start = time.process_time()
+        fun()
+        times.append(time.process_time() - start)
+    return float(np.median(times))
+
+
+def accuracy(sizes):
+    print("| mesh | n | standard L² | standard H¹ | interpolating L² | interpolating H¹ "
+          "| Q1 FEM L² | Q1 FEM H¹ |")
+    print("|---|---|---|---|---|---|---|---|")
+    for distortion in (0.0, 0.3):
+        for n in sizes:
+            mesh = square(n, distortion)
+            cols = (solve_standard(mesh) + solve_plain(RKBasis(mesh, interpolating=True))
+                    + solve_plain(Basis(mesh, ElementQuad1(), intorder=4)))
+            label = "uniform" if not distortion else f"distorted {distortion}"
+            print(f"| {label} | {n}² | " + " | ".join(f"{e:.2e}" for e in cols) + " |")
+
+
+def boundary(n):
+    print(f"\n{n}², uniform: | case | at boundary particles | at boundary facet midpoints "
+          "| linear u, all boundary values prescribed: max error inside |")
+    print("|---|---|---|---|")
+    mesh = square(n)
+    std = (solve_standard(mesh, measure=boundary_miss)
+           + solve_standard(square(8, 0.3), solution=linear, source=no_load,
+                            measure=field_miss))
+    itp = (solve_plain(RKBasis(mesh, interpolating=True), measure=boundary_miss)
+           + solve_plain(RKBasis(square(8, 0.3), interpolating=True), solution=linear,
+                         source=no_load, measure=field_miss))
+    naive = (solve_plain(RKBasis(mesh), measure=boundary_miss)
+             + solve_plain(RKBasis(square(8, 0.3)), solution=linear, source=no_load,
+                           measure=field_miss))
+    for label, cols in (("standard, skfem_rkpm.solve", std),
+                        ("interpolating, skfem.condense", itp),
+                        ("standard, skfem.condense (fixes coefficients)", naive)):
+        print(f"| {label} | " + " | ".join(f"{e:.1e}" for e in cols) + " |")
+
+
+def second_order(sizes, support=2.5):
+    print(f"\n| order 2, support {support} | n | standard L² | standard H¹ "
+          "| interpolating L² | interpolating H¹ |")
+    print("|---|---|---|---|---|---|")
+    for n in sizes:
+        mesh = square(n)
+        cols = solve_standard(mesh, support, 2) + solve_plain(
+            RKBasis(mesh, support=support, order=2, interpolating=True))
+        print(f"| uniform | {n}² | " + " | ".join(f"{e:.2e}" for e in cols) + " |")
+
+
+def supports(n):
+    print("\n| normalized support | standard L² | standard H¹ | interpolating L² "
+          "| interpolating H¹ |")
+    print("|---|---|---|---|---|")
+    mesh = square(n)
+    for c in (1.5, 1.75, 2.0, 2.5, 3.0):
+        cols = solve_standard(mesh, c) + solve_plain(RKBasis(mesh, support=c,
+                                                             interpolating=True))
+        print(f"| {c} | " + " | ".join(f"{e:.2e}" for e in cols) + " |")
+
+
+def build_cost(sizes, cubes, repeat):
+    print("\n| basis | particles | standard build (s) | interpolating build (s) | ratio "
+          "| standard table, numpy (s) | interpolating table (s) | ratio |")
+    print("|---|---|---|---|---|---|---|---|")
+    cases = [(f"square {n}², scalar", square(n), False) for n in sizes]
+    cases += [(f"cube {n}³, vector", MeshHex.init_tensor(*[np.linspace(0, 1, n + 1)] * 3),
+               True) for n in cubes]
+    for label, mesh, vector in cases:
+        std = timed(lambda: RKBasis(mesh, vector=vector), repeat)
+        itp = timed(lambda: RKBasis(mesh, vector=vector, interpolating=True), repeat)
+        x = np.asarray(RKBasis(mesh, integration="gauss").global_coordinates())
+        x = x.reshape(mesh.dim(), -1)
+        radius = 2.0 * local_spacing(mesh)
+        t_std = timed(lambda: rk_shape_functions(x, mesh.p, radius, backend="numpy"), repeat)
+        t_itp = timed(lambda: interpolating_shape_functions(x, mesh.p, radius), repeat)
+        print(f"| {label} | {mesh.nvertices} | {std:.3f} | {itp:.3f} | {itp / std:.2f} "
+              f"| {t_std:.3f} | {t_itp:.3f} | {t_itp / t_std:.2f} |")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    print(f"load: {os.getloadavg()[0]:.2f} (1 min)\n")
+    accuracy((16, 32, 64))
+    boundary(32)
+    second_order((16, 32, 64))
+    supports(32)
+    build_cost((32, 64, 128), (6, 10), args.repeat)
+
+
+if __name__ == "__main__":
+    main()

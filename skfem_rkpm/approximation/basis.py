@@ -25,7 +25,7 @@ from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
-from .interpolating import primitive_radius, shape_functions
+from .interpolating import basis_primitive_radius, shape_functions
 from .shape import ShapeTable, coordinates
 
 __all__ = ["RKBasis", "RKFacetBasis"]
@@ -139,10 +139,10 @@ class _RKBase(AbstractBasis):
     def doflocs(self):
         """Location of every coefficient: its particle, shape (dim, N).
 
-        The coefficients are not the field's values there (they are
-        generalized displacements): ``f(basis.doflocs)`` is not the
-        coefficient vector of ``f``; use :meth:`RKBasis.project`, and
-        :meth:`RKBasis.nodal_values` to read values at the particles.
+        Unless ``interpolating=True``, the coefficients are not the field's
+        values there (they are generalized displacements): ``f(basis.doflocs)``
+        is not the coefficient vector of ``f``; use :meth:`RKBasis.project`,
+        and :meth:`RKBasis.nodal_values` to read values at the particles.
         """
         return np.repeat(self.nodes, self.ncomp, axis=1)
 
@@ -365,8 +365,8 @@ class RKBasis(CellViews, _RKBase):
                              + (" (a mesh vertex without cells has no spacing: remove "
                                 "unused vertices)" if from_spacing else ""))
         _check_distinct(nodes, self.radius)
-        self.interpolating = bool(interpolating)
-        self._primitive = primitive_radius(nodes, self.radius) if interpolating else None
+        self._primitive = basis_primitive_radius(interpolating, nodes, self.radius)
+        self.interpolating = self._primitive is not None
         # a too small support is reported as a normalized support only when
         # the radii come from it; explicit radii get a growth factor
         self.dilation = support if from_spacing else None

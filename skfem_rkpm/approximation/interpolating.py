@@ -43,7 +43,8 @@ from .shape import (POINTS_PER_BLOCK, RCOND_MIN, ShapeTable, _batched_inverse,
                     _monomials, _rcond, check_order, coordinates, find_pairs,
                     monomial_exponents, rk_shape_functions)
 
-__all__ = ["primitive_radius", "interpolating_shape_functions", "shape_functions"]
+__all__ = ["primitive_radius", "basis_primitive_radius", "interpolating_shape_functions",
+           "shape_functions"]
 
 
 def primitive_radius(nodes, radius):
@@ -67,6 +68,14 @@ def primitive_radius(nodes, radius):
         return np.array(radius, dtype=float)
     distance, _ = cKDTree(nodes.T).query(nodes.T, k=2)
     return np.minimum(distance[:, 1], radius)
+
+
+def basis_primitive_radius(interpolating, nodes, radius):
+    """The primitive radii of ``RKBasis(..., interpolating=...)``: those of
+    :func:`primitive_radius`, or None for the standard basis."""
+    if not isinstance(interpolating, (bool, np.bool_)):
+        raise ValueError(f"interpolating must be True or False, not {interpolating!r}")
+    return primitive_radius(nodes, radius) if interpolating else None
 
 
 def _solve(H, lowered, phi, dphi, phat, dphat, inv_s, starts, counts, gradients):
@@ -201,6 +210,8 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
         # the moment matrix is the standard one: its builder reports the points
         rk_shape_functions(x, nodes, radius, order, kernel, support, False,
                            dilation, rcond_min, backend="numpy")
+        raise ValueError(f"moment matrix M(X) is singular or ill-conditioned at "
+                         f"{np.sum(~(rcond >= rcond_min))} points; increase the support")
     return ShapeTable(indptr, inode, values, grads, nnodes, kernel_values)
 
 

@@ -62,6 +62,7 @@ SUITE = {
     "vci_symmetry": ([], ["--levels", "4", "8", "--supports", "2", "--repeat", "1"],
                      (6, 0.5)),
     "basis_build": ([], ["--sizes", "1e4", "17227", "--repeat", "1"], (3, 0.5)),
+    "interpolating_basis": ([], ["--repeat", "1"], (0.5, 0.3)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

@@ -12,7 +12,12 @@ L² and H¹-seminorm errors with the basis' Gauss rule (degree 4).  Then the
 CPU time (``time.process_time``, median of ``--repeat``) of building the
 scalar basis on the square and the vector basis on n³ hexahedra, standard
 and interpolating; of the shape table alone (numpy path, both); and the
-errors at 32² for several normalized supports.
+errors at 32² for several normalized supports.  Last, the choice of the
+construction: the errors of the interpolant ``Σ_I N_I u(X_I)`` at 32² and
+64² (Gauss degree 6) for several primitive windows and radii, and for
+interpolating MLS with the singular weights ``φ(z)/z^α`` (Lancaster &
+Šalkauskas; evaluated only off the particles, where they are finite), and
+the Galerkin errors for smaller primitive radii.
 
 Run:  python benchmarks/interpolating_basis.py          (~1 minute)
 """
@@ -32,7 +37,9 @@ from skfem.models.poisson import laplace  # noqa: E402
 
 import skfem_rkpm  # noqa: E402
 from skfem_rkpm import RKBasis, rk_shape_functions  # noqa: E402
-from skfem_rkpm.approximation.interpolating import interpolating_shape_functions  # noqa: E402
+from skfem_rkpm.approximation.interpolating import (interpolating_shape_functions,  # noqa: E402
+                                                    primitive_radius)
+from skfem_rkpm.approximation.kernels import cubic_spline  # noqa: E402
 from skfem_rkpm.meshes import local_spacing  # noqa: E402
 
 
@@ -190,6 +197,84 @@ def build_cost(sizes, cubes, repeat):
               f"| {t_std:.3f} | {t_itp:.3f} | {t_itp / t_std:.2f} |")
 
 
+def cone(z):
+    z = np.asarray(z, dtype=float)
+    return np.where(z < 1, 1 - z, 0.0), np.where(z < 1, -1.0, 0.0)
+
+
+def smoothstep(z):
+    z = np.asarray(z, dtype=float)
+    return (np.where(z < 1, 1 - 3 * z**2 + 2 * z**3, 0.0),
+            np.where(z < 1, -6 * z + 6 * z**2, 0.0))
+
+
+def singular(alpha):
+    """The cubic window divided by z^α: infinite at its particle."""
+    def window(z):
+        z = np.asarray(z, dtype=float)
+        phi, dphi = cubic_spline(z)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return phi / z**alpha, dphi / z**alpha - alpha * phi / z**(alpha + 1)
+    return window
+
+
+def constructions(sizes):
+    print("\n| construction (interpolant of u) | n | L² | H¹ |")
+    print("|---|---|---|---|")
+    for n in sizes:
+        mesh = square(n)
+        x = np.asarray(RKBasis(mesh, integration="gauss", intorder=6)
+                       .global_coordinates()).reshape(2, -1)
+        w = RKBasis(mesh, integration="gauss", intorder=6).dx.ravel()
+        radius = 2.0 * local_spacing(mesh)
+        d = primitive_radius(mesh.p, radius)
+        cases = [("standard RK (not interpolating)",
+                  lambda: rk_shape_functions(x, mesh.p, radius, backend="numpy"))]
+        for label, window in (("cubic", None), ("quartic", "quartic"), ("cone 1 - z", cone),
+                              ("smoothstep", smoothstep)):
+            cases.append((f"Chen 2003, primitive {label}, radius d_K",
+                          lambda window=window: interpolating_shape_functions(
+                              x, mesh.p, radius, primitive_window=window)))
+        for fraction in (0.75, 0.5):
+            cases.append((f"Chen 2003, primitive cubic, radius {fraction} d_K",
+                          lambda fraction=fraction: interpolating_shape_functions(
+                              x, mesh.p, radius, primitive=fraction * d)))
+        for alpha in (2, 4):
+            cases.append((f"interpolating MLS, weight φ/z^{alpha}",
+                          lambda alpha=alpha: rk_shape_functions(
+                              x, mesh.p, radius, kernel=singular(alpha), backend="numpy",
+                              rcond_min=0.0)))
+        u = exact(mesh.p)
+        for label, build in cases:
+            table = build()
+            value = table.matrix() @ u
+            grad = np.array([table.gradient_matrix(k) @ u for k in range(2)])
+            l2 = np.sqrt(np.sum((value - exact(x)) ** 2 * w))
+            h1 = np.sqrt(np.sum(((grad - exact_grad(x)) ** 2).sum(0) * w))
+            print(f"| {label} | {n}² | {l2:.2e} | {h1:.2e} |")
+
+
+def primitive_fractions(sizes):
+    """Galerkin errors with the primitive radii scaled by a fraction of the
+    default (not an option of RKBasis: patched in for this measurement)."""
+    from unittest import mock
+
+    import skfem_rkpm.approximation.basis as basis_module
+
+    print("\n| primitive radius | mesh | n | L² | H¹ |")
+    print("|---|---|---|---|---|")
+    for fraction in (1.0, 0.75, 0.5):
+        def scaled(flag, nodes, radius, fraction=fraction):
+            return fraction * primitive_radius(nodes, radius) if flag else None
+        with mock.patch.object(basis_module, "basis_primitive_radius", scaled):
+            for distortion in (0.0, 0.3):
+                for n in sizes:
+                    cols = solve_plain(RKBasis(square(n, distortion), interpolating=True))
+                    label = "uniform" if not distortion else f"distorted {distortion}"
+                    print(f"| {fraction} d_K | {label} | {n}² | "
+                          + " | ".join(f"{e:.2e}" for e in cols) + " |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -200,6 +285,8 @@ def main():
     second_order((16, 32, 64))
     supports(32)
     build_cost((32, 64, 128), (6, 10), args.repeat)
+    constructions((32, 64))
+    primitive_fractions((32, 64))
 
 
 if __name__ == "__main__":

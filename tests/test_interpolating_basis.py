@@ -117,6 +117,24 @@ def test_box_supports_and_quartic_window():
         assert np.abs(basis.probes(x) @ linear(mesh.p) - linear(x)).max() < 1e-13
 
 
+def test_other_primitive_windows():
+    """Any window positive at 0 and zero from z = 1 on gives the delta
+    property (here the cone 1 - z, whose kink sits at the particle); one
+    that is zero at 0 is refused."""
+    mesh = MESHES["distorted triangles"]()
+    radius = 2.0 * local_spacing(mesh)
+    x = np.hstack([mesh.p, np.random.default_rng(8).uniform(0, 1, (2, 200))])
+    cone = lambda z: (np.maximum(1 - z, 0.0), np.where(z < 1, -1.0, 0.0))  # noqa: E731
+    A = interpolating_shape_functions(x, mesh.p, radius, primitive_window=cone).matrix()
+    n = mesh.nvertices
+    assert np.abs(A[:n].toarray() - np.eye(n)).max() < 1e-14
+    linear = 1 + 2 * x[0] - x[1]
+    assert np.abs(A @ linear[:n] - linear).max() < 1e-13
+    with pytest.raises(ValueError, match="primitive window is 0.0 at z = 0"):
+        interpolating_shape_functions(x, mesh.p, radius,
+                                      primitive_window=lambda z: (z * (z < 1), 1.0 * (z < 1)))
+
+
 def test_gradients_match_central_differences():
     """The analytic gradients against central differences of the values
     (step 1e-6: truncation ~h²·|∂³N| ≈ 1e-12·1e5 and cancellation

@@ -114,7 +114,8 @@ def _solve(H, lowered, phi, dphi, phat, dphat, inv_s, starts, counts, gradients)
 
 def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
                                   support="radial", gradients=True, dilation=None,
-                                  rcond_min=RCOND_MIN, primitive=None):
+                                  rcond_min=RCOND_MIN, primitive=None,
+                                  primitive_window=None):
     """Interpolating RK shape functions ``N_I(X)`` and ``∂N_I/∂X``.
 
     The construction of Chen, Han, You & Meng (2003) (see the module
@@ -138,6 +139,9 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
         Support radii ``â_I`` of the primitive functions, each at most the
         distance to the nearest other particle and at most ``a_I``; default
         :func:`primitive_radius`.
+    primitive_window : str or callable, optional
+        Window of the primitive functions (default ``kernel``); any window
+        positive at 0 and zero from ``z = 1`` on keeps the delta property.
 
     Returns
     -------
@@ -168,9 +172,10 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
                  else np.broadcast_to(np.asarray(primitive, float), (nnodes,)))
     _check_primitive(nodes, radius, primitive)
     window = get_kernel(kernel)
-    phi0 = float((window)(np.zeros(1))[0][0])
+    bump = get_kernel(kernel if primitive_window is None else primitive_window)
+    phi0 = float(bump(np.zeros(1))[0][0])
     if not phi0 > 0:
-        raise ValueError(f"the window {kernel!r} is {phi0} at z = 0; an interpolating "
+        raise ValueError(f"the primitive window is {phi0} at z = 0; an interpolating "
                          "basis needs a window that is positive there")
     exps = monomial_exponents(dim, order)
     m = len(exps)
@@ -194,7 +199,7 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
         diff = np.take(x, ipoint[lo:hi], axis=1) - np.take(nodes, I, axis=1)
         a = radius[I]
         phi, dphi = _kernel_weights(diff, a, window, support)
-        phat, dphat = _kernel_weights(diff, primitive[I], window, "radial")
+        phat, dphat = _kernel_weights(diff, primitive[I], bump, "radial")
         phat, dphat = phat / phi0, dphat / phi0
         s = np.maximum.reduceat(a, starts)
         inv_s = np.repeat(1.0 / s, counts[start:stop])

@@ -11,7 +11,6 @@ import pytest
 import skfem
 from skfem import (Basis, ElementQuad1, LinearForm, MeshQuad, MeshTet, MeshTri, asm,
                    condense, enforce, solve)
-from skfem.helpers import dot
 from skfem.models.elasticity import lame_parameters
 from skfem.models.poisson import laplace
 

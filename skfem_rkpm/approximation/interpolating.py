@@ -86,7 +86,6 @@ def _solve(H, lowered, phi, dphi, phat, dphat, inv_s, starts, counts, gradients)
     Returns the pair values ``N_I``, gradients and the reciprocal condition
     number of each point's moment matrix.
     """
-    m = len(H)
     M = _moment_matrices(H, phi, starts)
     Minv = _batched_inverse(M)
     rcond = _rcond(M, Minv)

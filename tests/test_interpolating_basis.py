@@ -424,3 +424,21 @@ def test_scene_key_selects_the_interpolating_basis():
         assert basis.interpolating is flag
         identity = bool(np.abs(basis.nodal_matrix - np.eye(basis.N)).max() < 1e-14)
         assert identity is flag
+
+
+def test_scikit_fem_dof_arrays_are_nodal_on_an_interpolating_basis():
+    """``x[basis.nodal_dofs[c]]`` reads component c at the particles: the
+    field evaluated there, as on a Q1 basis (the standard basis refuses)."""
+    from skfem import MeshQuad
+
+    from skfem_rkpm.approximation.basis_views import CoefficientsNotNodalError
+
+    mesh = MeshQuad().refined(2)
+    basis = RKBasis(mesh, vector=True, interpolating=True)
+    x = basis.project(lambda X: np.array([X[0] ** 2, 1 + X[1]]))
+    values = (basis.probes(mesh.p) @ x).reshape(2, -1)  # component-major rows
+    for c in range(2):
+        np.testing.assert_allclose(x[basis.nodal_dofs[c]], values[c], atol=1e-12)
+    assert basis.facet_dofs.shape == (2, 0)
+    with pytest.raises(CoefficientsNotNodalError):
+        RKBasis(mesh, vector=True).nodal_dofs

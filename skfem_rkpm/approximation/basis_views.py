@@ -95,7 +95,14 @@ class _DofIdioms:
     """Dof idioms of both RK bases: component indices, and loud errors where
     scikit-fem would hand out dofs that read coefficients as nodal values."""
 
-    def _not_nodal(self, name):
+    def _dof_array(self, name):
+        """scikit-fem's dof arrays: on an interpolating basis (coefficients
+        are nodal values) ``nodal_dofs`` (ncomp, nparticles) and empty facet,
+        edge and interior dofs; a :class:`CoefficientsNotNodalError` otherwise."""
+        if getattr(self, "interpolating", False) and name != "dofs":
+            if name == "nodal_dofs":
+                return np.arange(self.N).reshape(-1, self.ncomp).T
+            return np.zeros((self.ncomp, 0), dtype=np.int64)
         raise CoefficientsNotNodalError(
             f"an RK basis has no {name}: its coefficients are not nodal values, and "
             f"x[basis.{name}[c]] would read coefficients; the nodal values of component "
@@ -103,11 +110,11 @@ class _DofIdioms:
             "cell basis); dof numbers come from basis.get_dofs(...) and "
             "basis.split_indices()")
 
-    nodal_dofs = property(lambda self: self._not_nodal("nodal_dofs"))
-    facet_dofs = property(lambda self: self._not_nodal("facet_dofs"))
-    edge_dofs = property(lambda self: self._not_nodal("edge_dofs"))
-    interior_dofs = property(lambda self: self._not_nodal("interior_dofs"))
-    dofs = property(lambda self: self._not_nodal("dofs"))
+    nodal_dofs = property(lambda self: self._dof_array("nodal_dofs"))
+    facet_dofs = property(lambda self: self._dof_array("facet_dofs"))
+    edge_dofs = property(lambda self: self._dof_array("edge_dofs"))
+    interior_dofs = property(lambda self: self._dof_array("interior_dofs"))
+    dofs = property(lambda self: self._dof_array("dofs"))
 
     def split_indices(self):
         """Coefficient numbers of each component: ``[arange(c, N, ncomp)]``.

@@ -12,6 +12,7 @@ case N times and reports the median CPU time.
 Run:  python benchmarks/contact_scenes.py                  (~10 minutes, one core)
       python benchmarks/contact_scenes.py --cases ring      (the ring cases only)
       python benchmarks/contact_scenes.py --repeat 3
+      python benchmarks/contact_scenes.py --penalty-sweep  (the ring's penalty factor)
 """
 
 import argparse
@@ -57,6 +58,15 @@ CASES = {
                                         + augmented("punch", "die")),
 }
 
+#: the ring's penalty law against its penalty factor (``--penalty-sweep``)
+PENALTY_SWEEP = {}
+for _friction, _setting in (("mu=0.15", "0.15"), ("stick", '"stick"')):
+    for _method in ("rkpm", "fem"):
+        for _factor in (30, 100, 300, 1000, 3000):
+            PENALTY_SWEEP[f"ring {_friction} {_method} penalty factor {_factor}"] = (
+                "ring", _method, [f"tools.platen.friction={_setting}"]
+                + penalty("platen", factor=_factor))
+
 
 def run_case(scene, method, settings, folder, limit):
     """CPU seconds of one whole ``skfem-rkpm run`` and its exit status."""
@@ -83,7 +93,8 @@ def summary(folder):
            "cut-backs": sum(int(r["cutbacks"]) for r in rows)}
     out["penetration"] = max(float(v) for k, v in last.items() if k.endswith("penetration"))
     if "inner_mid x" in last:
-        out["result"] = f"ID {100 * float(last['inner_mid x']) / 30.0 - 100:+.2f} %"
+        out["result"] = (f"ID {100 * float(last['inner_mid x']) / 30.0 - 100:+.3f} %, "
+                         f"F {-float(last['reaction platen y']) / 1e3:.1f} kN")
     elif "reaction punch y" in last:
         out["result"] = f"F {-float(last['reaction punch y']):.1f} N"
     return out
@@ -94,16 +105,19 @@ def main():
     parser.add_argument("--cases", nargs="*", default=[],
                         help="run only cases whose name contains one of these words")
     parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--penalty-sweep", action="store_true",
+                        help="the ring with penalty factors 30-3000 instead of the scenes")
     parser.add_argument("--limit", type=float, default=1800.0,
                         help="seconds after which a run is stopped")
     args = parser.parse_args()
-    names = [n for n in CASES if not args.cases or any(w in n for w in args.cases)]
+    cases = PENALTY_SWEEP if args.penalty_sweep else CASES
+    names = [n for n in cases if not args.cases or any(w in n for w in args.cases)]
     print(f"load average at start: {os.getloadavg()[0]:.1f}")
     print("| case | status | t | steps | iterations/step | all iterations | cut-backs "
           "| penetration (mm) | result | CPU s (median) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in names:
-        scene, method, settings = CASES[name]
+        scene, method, settings = cases[name]
         times = []
         with tempfile.TemporaryDirectory() as tmp:
             for k in range(args.repeat):

@@ -348,3 +348,37 @@ def test_singular_constrained_block_is_reported():
 
     with pytest.raises(np.linalg.LinAlgError, match="singular.*skfem_rkpm.solve"):
         condense(sp.identity(3, format="csr"), np.ones(3), D=[0, 1], basis=TwoAlike())
+
+
+@pytest.mark.parametrize("idiom", ["condense", "enforce", "penalize"])
+def test_extra_multiplier_rows_with_prescribed_nodal_values(idiom):
+    """A system bordered by a multiplier row (``∫ u = 1/10``, its multiplier
+    a uniform source) with ``u = x`` at the particles of the left and right
+    sides: scikit-fem's idioms with the bordered matrix give the solution of
+    the saddle-point system with the conditions ``(Λᵀ d)_D = x_D`` written
+    out in full (solved by sparse LU), the multiplier included."""
+    m = square(6)
+    basis = RKBasis(m)
+    N = basis.N
+    K = asm(laplace, basis.trial, basis)
+    f = asm(unit_load, basis)
+    b = f.copy()  # ∫ Ψ_I
+    A = sp.bmat([[K, sp.csr_matrix(b).T], [sp.csr_matrix(b), None]]).tocsr()
+    rhs = np.concatenate([f, [0.1]])
+    D = basis.get_dofs(lambda X: (X[0] < 1e-12) | (X[0] > 1 - 1e-12)).all()
+    x = np.concatenate([basis.nodes[0], [0.0]])  # nodal values u = x on D
+    C = basis.nodal_matrix.tocsr()[D]  # Λᵀ, rows D
+    C = sp.hstack([C, sp.csr_matrix((len(D), 1))])
+    full = sp.bmat([[A, C.T], [C, None]]).tocsc()
+    reference = sp.linalg.spsolve(full, np.concatenate([rhs, x[D]]))[:N + 1]
+    if idiom == "condense":
+        d = solve(*condense(A, rhs, x=x, D=D, basis=basis))
+    elif idiom == "enforce":
+        d = solve(*enforce(A, rhs, x=x, D=D, basis=basis))
+    else:
+        d = solve(*penalize(A, rhs, x=x, D=D, basis=basis))
+    # penalize: nodal values off by O(ε |A|) = 1e-10 relative (its default ε)
+    tol = 1e-7 if idiom == "penalize" else 1e-10
+    np.testing.assert_allclose(d, reference, atol=tol * np.abs(reference).max())
+    np.testing.assert_allclose(basis.nodal_values(d[:N])[D], x[D], atol=tol)
+    assert abs(b @ d[:N] - 0.1) < 1e-9

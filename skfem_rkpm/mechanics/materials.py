@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kinematics import inverse_and_determinant
+
 __all__ = ["Hardening", "perfect", "linear", "swift", "voce", "table", "J2Material",
            "MaterialState", "ReturnMapError", "ReturnPoint"]
 
@@ -457,7 +459,7 @@ class J2Material:
         later, only if it is asked for (a Newton line search rejects some
         states, and the converged state needs no tangent).
         """
-        Finv = np.linalg.inv(F)
+        Finv, _ = inverse_and_determinant(F)
         b = F @ state.Cp_inv @ F.transpose(0, 2, 1)
         b = 0.5 * (b + b.transpose(0, 2, 1))
         lam, vec = _spectral(b)

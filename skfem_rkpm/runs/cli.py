@@ -57,7 +57,6 @@ def _out(args, path, method, settings, suffix=""):
 
 
 def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
-    from .plot import save_run_figures
     from .runner import build, run, scene_step
 
     scene = load_scene(path, settings)
@@ -72,6 +71,8 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
                   f"not distributed: every rank repeats the whole run (use --solver petsc)")
     result = run(sim, out, progress=root and not quiet, resume=resume)
     if root and scene["output"]["figures"] and result.history:
+        from .plot import save_run_figures  # matplotlib: 0.4 s to import
+
         save_run_figures(sim, result, out)
     iterations = sum(r.iterations for r in result.history)
     seconds = sum(r.seconds for r in result.history)

@@ -64,6 +64,19 @@ def _dofs(S, N, what):
     return S
 
 
+def _nodal_rows(basis, N):
+    """``Λᵀ`` of ``basis`` for a system of ``N`` unknowns: the basis's
+    coefficients first, then ``N - basis.N`` extra unknowns (Lagrange
+    multipliers of rows added to the system, e.g. ``∫ u = 0``), which are
+    their own values (identity rows)."""
+    T = transformation(basis).tocsr()
+    extra = N - T.shape[0]
+    if extra < 0:
+        raise ValueError(f"the system has {N} unknowns, fewer than the {T.shape[0]} "
+                         f"coefficients of the basis: pass the matrix of this basis")
+    return sp.block_diag([T, sp.identity(extra)], format="csr") if extra else T
+
+
 def _split(N, I, D):
     if (I is None) == (D is None):
         raise ValueError("give either D (the dofs whose nodal values are prescribed) or "
@@ -104,8 +117,8 @@ class NodalElimination:
         ``Z = [1 ; -C_D⁻¹ C_I]`` (rows ``I`` the identity), ``Λᵀ[D] Z = 0``.
     """
 
-    def __init__(self, basis, I, D):
-        T = transformation(basis).tocsr()
+    def __init__(self, basis, I, D, N=None):
+        T = _nodal_rows(basis, basis.N if N is None else N)
         N = T.shape[0]
         self.N, self.I, self.D = N, I, D
         C = T[D]
@@ -190,7 +203,7 @@ def condense(A, b=None, x=None, I=None, D=None, expand=True, basis=None):
         return skfem.condense(A, b, x=x, I=I, D=D, expand=expand)
     N = A.shape[0]
     I, D = _split(N, I, D)
-    elim = NodalElimination(basis, I, D)
+    elim = NodalElimination(basis, I, D, N)
     if b is None:
         if x is None:
             reduced = (elim.reduce(A),)
@@ -230,10 +243,10 @@ def enforce(A, b=None, x=None, I=None, D=None, diag=1.0, overwrite=False, basis=
         return skfem.enforce(A, b, x=x, I=I, D=D, diag=diag, overwrite=overwrite)
     N = A.shape[0]
     I, D = _split(N, I, D)
-    elim = NodalElimination(basis, I, D)
+    elim = NodalElimination(basis, I, D, N)
     rows = sp.csr_matrix((np.ones(N), (np.concatenate([I, D]), np.arange(N))),
                          shape=(N, N))
-    C = transformation(basis).tocsr()[D]
+    C = _nodal_rows(basis, N)[D]
     A_e = (rows @ sp.vstack([elim.Z.T @ sp.csr_matrix(A), diag * C])).tocsr()
     if b is None:
         return A_e
@@ -267,7 +280,7 @@ def penalize(A, b=None, x=None, I=None, D=None, epsilon=None, overwrite=False,
         return skfem.penalize(A, b, x=x, I=I, D=D, epsilon=epsilon, overwrite=overwrite)
     N = A.shape[0]
     I, D = _split(N, I, D)
-    C = transformation(basis).tocsr()[D]
+    C = _nodal_rows(basis, N)[D]
     if epsilon is None:
         epsilon = 1e-10 / np.abs(A.diagonal()[D]).max(initial=0.0)
     if not (np.isfinite(epsilon) and epsilon > 0):
@@ -315,7 +328,7 @@ def eigen(K, M, basis=None, D=None, k=6, sigma=0.0, symmetric=None):
     N = K.shape[0]
     I, D = _split(N, None, np.zeros(0, np.int64) if D is None else D)
     if _is_rk(basis):
-        elim = NodalElimination(basis, I, D)
+        elim = NodalElimination(basis, I, D, N)
         Kr, Mr, expand = elim.reduce(K), elim.reduce(M), elim.expand
     else:
         Kr = sp.csr_matrix(K)[I][:, I]

@@ -12,7 +12,7 @@ counted.  Times are CPU seconds of the process (``time.process_time``), the
 median of ``--repeat`` builds up to 2e4 particles and one build above.
 
 Phases, measured by wrapping the functions the basis calls (``shape``:
-``rk_shape_functions`` at the cell and boundary Gauss points and the
+``shape_functions`` at the cell and boundary Gauss points and the
 particles; ``vci``: ``vci_gradients``; ``layout``: the padded per-cell
 layout; the rest of the build is the remainder).
 
@@ -75,7 +75,7 @@ def child(particles, repeat):
                 spent[name] += time.process_time() - start
         return wrapper
 
-    basis_module.rk_shape_functions = timed("shape", basis_module.rk_shape_functions)
+    basis_module.shape_functions = timed("shape", basis_module.shape_functions)
     basis_module.vci_gradients = timed("vci", basis_module.vci_gradients)
     basis_module._padded = timed("layout", basis_module._padded)
     if hasattr(basis_module, "_cell_particles"):

@@ -19,7 +19,8 @@ branch), each part ``--repeat`` times (the fastest run is reported):
   ``assembler.local_bilinear`` + ``assembler.matrix``;
 * *F-bar*: the rest of ``problem.evaluate`` (``F̄``, ``Â``, the rank-one
   cell terms), i.e. *evaluate* minus the three parts above;
-* *evaluate*: ``problem.evaluate(d)`` as a whole;
+* *evaluate*: ``problem.evaluate(d)`` as a whole, its tangent ``K`` formed
+  (which ``evaluate`` does only when ``K`` is read);
 * *contact*: ``RigidContact.evaluate(d, t)`` (force and tangent);
 * *K + K_c*: the sum of the two sparse tangents;
 * *solve*: ``solve_constrained(K, r, C, g)``, the saddle-point system with
@@ -135,7 +136,7 @@ def time_parts(sim, d, t, C, repeat):
         "material": fastest(lambda: problem.material.update(
             F, problem.state, entries=problem.entries), repeat),
         "assembly": fastest(assembly, repeat),
-        "evaluate": fastest(lambda: problem.evaluate(d), repeat),
+        "evaluate": fastest(lambda: problem.evaluate(d).K, repeat),
         "contact": fastest(lambda: tool.evaluate(d, t), repeat),
         "K + K_c": fastest(lambda: ev.K + K_c, repeat),
         "solve": fastest(lambda: solve_constrained(K, r, C, g), repeat),

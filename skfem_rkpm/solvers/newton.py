@@ -16,6 +16,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..approximation.constraints import ConstraintSet, nodal_constraint, weak_constraint
@@ -141,7 +142,7 @@ class _Reactions:
     """Least-squares split of a force into reactions ``Cᵀ λ`` and the rest."""
 
     def __init__(self, C):
-        self.C = C
+        self.C, self.CT = sp.csr_matrix(C), sp.csr_matrix(C.T)
         try:
             self.lu = splu((C @ C.T).tocsc()) if C.shape[0] else None
         except RuntimeError as err:
@@ -155,7 +156,7 @@ class _Reactions:
 
     def out_of_balance(self, force):
         """``force`` minus its reaction part."""
-        return force - self.C.T @ self.multipliers(force) if self.lu else force
+        return force - self.CT @ self.multipliers(force) if self.lu else force
 
 
 #: a step also converges when the update's energy ``|δ·r|`` has fallen to this

@@ -97,7 +97,7 @@ def test_platen_compresses_the_block_on_the_exact_curve(tmp_path, method):
     assert 0 < float(rows[-1]["platen penetration"]) < 1e-4
 
 
-def test_a_platen_read_from_a_surface_file_is_the_platen(tmp_path):
+def test_a_platen_read_from_a_surface_file_is_the_platen(tmp_path, monkeypatch):
     """The platen as two triangles in an STL file (path relative to the
     scene): the same closest points, normals and curvature (zero), so the
     same run up to the Newton tolerance (1e-12 on the residual; measured
@@ -109,7 +109,11 @@ def test_a_platen_read_from_a_surface_file_is_the_platen(tmp_path):
     surface = PLATEN.replace('kind = "platen"', 'kind = "surface"\nfile = "platen.stl"')
     surface = surface.replace('point = [0.0, 0.0, 10.0]\nnormal = [0.0, 0.0, -1.0]\n', "")
     plane = run_scene(tmp_path, BLOCK + PLATEN, "fem", "plane")
+    reads = []
+    read = meshio.read
+    monkeypatch.setattr(meshio, "read", lambda *a, **k: reads.append(a) or read(*a, **k))
     faceted = run_scene(tmp_path, BLOCK + surface, "fem", "faceted")
+    assert len(reads) == 1  # checked and built from one reading of the file
     for a, b in zip(plane, faceted):
         assert float(b["reaction platen z"]) == pytest.approx(float(a["reaction platen z"]),
                                                               rel=1e-9)

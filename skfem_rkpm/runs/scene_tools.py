@@ -129,6 +129,26 @@ def _rotation(section):
     return {"axis": values[:3], "point": values[3:6], "angle": values[6]}
 
 
+#: triangulated tools built lately, by file (path, modification time, size)
+#: and motion: the scene check builds each tool, and the build that follows
+#: reuses it instead of reading the file and building its search tree again
+_SURFACES = {}
+_SURFACES_KEPT = 4
+
+
+def _surface_from_file(path, moving, surface_class):
+    """``surface_class.from_file(path, **moving)``, reused while the file is unchanged."""
+    if not path.is_file():
+        return surface_class.from_file(path, **moving)  # names the missing file
+    stat = path.stat()
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size, repr(moving))
+    if key not in _SURFACES:
+        while len(_SURFACES) >= _SURFACES_KEPT:
+            _SURFACES.pop(next(iter(_SURFACES)))
+        _SURFACES[key] = surface_class.from_file(path, **moving)
+    return _SURFACES[key]
+
+
 def tool_from(name, section, dim=2, base=None):
     """The rigid tool of a ``[tools.NAME]`` section: a 2D
     :class:`~skfem_rkpm.mechanics.tools.Tool` or a 3D
@@ -167,6 +187,6 @@ def tool_from(name, section, dim=2, base=None):
             path = Path(section["file"])
             if base is not None and not path.is_absolute():
                 path = Path(base) / path
-            return TriangulatedSurface.from_file(path, **moving)
+            return _surface_from_file(path, moving, TriangulatedSurface)
     raise SceneError(f"tools.{name}.kind: a {dim}D model takes the tools "
                      f"{', '.join(TOOL_KINDS[dim])}, not {kind!r}")

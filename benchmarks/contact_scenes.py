@@ -16,14 +16,12 @@ Run:  python benchmarks/contact_scenes.py                  (~10 minutes, one cor
 """
 
 import argparse
-import csv
 import os
-import resource
 import statistics
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
+
+from whole_runs import history, run_scene
 
 
 def augmented(*tools, factor=10):
@@ -68,29 +66,9 @@ for _friction, _setting in (("mu=0.15", "0.15"), ("stick", '"stick"')):
                 + penalty("platen", factor=_factor))
 
 
-def run_case(scene, method, settings, folder, limit):
-    """CPU seconds of one whole ``skfem-rkpm run`` and its exit status."""
-    command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", scene, "--quiet",
-               "--method", method, "--out", str(folder),
-               "--set", "output.fields=false", "--set", "output.figures=false"]
-    for setting in settings:
-        command += ["--set", setting]
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    done = subprocess.run(command, env=env, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.DEVNULL, timeout=limit)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    seconds = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return seconds, done.returncode
-
-
 def summary(folder):
-    rows = list(csv.DictReader(open(Path(folder) / "history.csv")))
+    rows, out = history(folder)
     last = rows[-1]
-    out = {"t": float(last["t"]), "steps": len(rows),
-           "iterations": sum(int(r["iterations"]) for r in rows),
-           "all iterations": sum(int(r["all iterations"]) for r in rows),
-           "cut-backs": sum(int(r["cutbacks"]) for r in rows)}
     out["penetration"] = max(float(v) for k, v in last.items() if k.endswith("penetration"))
     if "inner_mid x" in last:
         out["result"] = (f"ID {100 * float(last['inner_mid x']) / 30.0 - 100:+.3f} %, "
@@ -121,8 +99,8 @@ def main():
         times = []
         with tempfile.TemporaryDirectory() as tmp:
             for k in range(args.repeat):
-                seconds, code = run_case(scene, method, settings, Path(tmp) / f"r{k}",
-                                         args.limit)
+                seconds, _, code = run_scene(scene, method, settings, Path(tmp) / f"r{k}",
+                                             args.limit)
                 times.append(seconds)
             s = summary(Path(tmp) / "r0")
         status = "completed" if code == 0 else f"stopped ({code})"

@@ -3,7 +3,8 @@
 Every case runs ``skfem-rkpm run SCENE`` in a fresh process and reports:
 unknowns and Gauss points, the load steps, the Newton iterations of all
 attempts (failed ones and cut-backs included), the CPU time of the whole
-process (user + system: imports, mesh, basis, every attempt, output), the
+process (user + system: imports, mesh, basis, every attempt, the history;
+fields and figures are not written), the
 CPU time per iteration (whole process over all iterations: an upper
 bound), the peak memory (maximum resident set of the process), and the
 scene's result: the inner-diameter change and full-ring force of the ring
@@ -17,13 +18,12 @@ Run:  python benchmarks/forming_3d.py                 (~1 hour, one core per cas
 """
 
 import argparse
-import csv
 import os
 import statistics
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
+
+from whole_runs import history, run_scene
 
 CASES = {
     # name: (scene, method, settings)
@@ -38,26 +38,6 @@ CASES = {
 QUICK = {"ring_sector": ["geometry.divisions=[5, 2, 4]", "steps.count=20"],
          "billet_3d": ["geometry.divisions=[4, 2, 3]", "steps.count=20"],
          "stretch_3d": ["geometry.divisions=[8, 8, 1]", "steps.count=10"]}
-
-#: runs a command and prints the CPU seconds and peak memory (kB) of it
-_MEASURE = ("import resource, subprocess, sys; "
-            "code = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, "
-            "stderr=subprocess.DEVNULL).returncode; "
-            "r = resource.getrusage(resource.RUSAGE_CHILDREN); "
-            "print(r.ru_utime + r.ru_stime, r.ru_maxrss, code)")
-
-
-def run_case(scene, method, settings, folder):
-    """CPU seconds, peak memory (MB) and exit status of one whole run."""
-    command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", scene, "--quiet",
-               "--method", method, "--out", str(folder), "--set", "output.fields=false"]
-    for setting in settings:
-        command += ["--set", setting]
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
-    out = subprocess.run([sys.executable, "-c", _MEASURE, *command], env=env,
-                         capture_output=True, text=True, check=True).stdout.split()
-    return float(out[0]), float(out[1]) / 1024.0, int(out[2])
-
 
 def result(scene, last, status):
     """The scene's own numbers from the last row of its history."""
@@ -76,12 +56,10 @@ def result(scene, last, status):
 
 
 def summary(folder, scene):
-    rows = list(csv.DictReader(open(Path(folder) / "history.csv")))
+    rows, out = history(folder)
     status = (Path(folder) / "status.txt").read_text().strip()
-    return {"t": float(rows[-1]["t"]), "steps": len(rows),
-            "all iterations": sum(int(r["all iterations"]) for r in rows),
-            "cut-backs": sum(int(r["cutbacks"]) for r in rows),
-            "result": result(scene, rows[-1], status)}
+    out["result"] = result(scene, rows[-1], status)
+    return out
 
 
 def size(scene, method, settings):
@@ -112,7 +90,7 @@ def main():
         times, peaks = [], []
         with tempfile.TemporaryDirectory() as tmp:
             for k in range(args.repeat):
-                seconds, peak, code = run_case(scene, method, settings, Path(tmp) / f"r{k}")
+                seconds, peak, code = run_scene(scene, method, settings, Path(tmp) / f"r{k}")
                 times.append(seconds)
                 peaks.append(peak)
             s = summary(Path(tmp) / "r0", scene)

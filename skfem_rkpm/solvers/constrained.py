@@ -19,6 +19,7 @@ nodal values directly.  The rows ``C`` come from
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.sparse.linalg import LinearOperator, gmres
 
 from ..approximation.constraints import transformation
@@ -116,7 +117,7 @@ def _penalty(K, C):
     return 10.0 * (kd if kd > 0 else 1.0) / (cd if cd > 0 else 1.0)
 
 
-def solve_saddle_point(solver, K, f, C, g, rtol=1e-13, maxiter=200):
+def solve_saddle_point(solver, K, f, C, g, rtol=1e-14, maxiter=200):
     """Solve ``K d = f + Cᵀ λ``, ``C d = g`` with ``solver``; return ``d``, ``λ``.
 
     The saddle-point system is ``[[K, Cᵀ], [C, 0]] [d; -λ] = [f; g]``.
@@ -131,21 +132,26 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-13, maxiter=200):
     ``K``, and it is nonsingular (positive definite for symmetric positive
     semi-definite ``K``) whenever the saddle-point system is, also when
     ``K`` alone is singular because only the constraints remove its
-    rigid-body modes.  The eigenvalues of ``(C K_ρ⁻¹ Cᵀ)⁻¹`` lie in
-    ``[ρ, ρ + μ]`` with ``μ`` of the order of ``|K|``, so with
-    ``ρ = 10 |K| / |CᵀC|`` GMRES needs a handful of iterations, independent
-    of the mesh.  SuperLU's minimum-degree ordering cannot order the zero
-    block of the saddle-point matrix well (a coarse 3D RK tangent with
-    weak symmetry planes: 14.1 million factor entries against 6.6 million
-    for ``K_ρ``, 2.8 s against 0.5 s; docs/performance.md).
+    rigid-body modes.  If ``K`` is invertible, the eigenvalues of
+    ``(C K_ρ⁻¹ Cᵀ)⁻¹`` are ``ρ`` plus those of ``(C K⁻¹ Cᵀ)⁻¹``; with
+    ``ρ = 10 |K| / |CᵀC|`` most lie near ``ρ`` and GMRES needs about ten
+    iterations on the coarse 3D RK scenes (9-19 on the ring sector's 464
+    weak rows), more where rows nearly cancel (80-90 on the thin sheet of
+    ``stretch_3d``).  SuperLU's minimum-degree ordering of the
+    saddle-point matrix itself reaches the zero diagonal of the multipliers
+    half-way and must pivot off the diagonal there (2840 of 4160 pivots on
+    a coarse 3D RK ring sector with weak symmetry planes), which undoes the
+    ordering: 14.1 million factor entries against 6.6 million for ``K_ρ``,
+    2.8 s against 0.5 s (docs/performance.md).
 
-    The result is that of the saddle-point system to round-off: ``λ``
-    converges to ``rtol`` relative to ``ρ (|g| + |C K_ρ⁻¹ (f + ρ Cᵀ g)|)``
-    and the residual of the whole system is checked against ``1e-10
-    |[f; g]|`` (the check SuperLU applies to its own solves), with one step
-    of iterative refinement if it is larger.  Should that fail, or ``K_ρ``
-    be singular, SuperLU factors the saddle-point matrix itself; an SPD-only
-    backend asked for by name raises instead.
+    ``rtol`` is the backward error of the saddle-point system
+    (:func:`_backward_error`) that iterative refinement goes for, at most
+    three corrections from the residual; below
+    :data:`ACCEPTED_BACKWARD_ERROR` the solve is accepted (SuperLU's direct
+    solves of the same systems leave 1e-13 to 1e-8), else, or when ``K_ρ``
+    is singular, SuperLU factors the saddle-point matrix itself; an
+    SPD-only backend asked for by name raises instead.  ``maxiter`` bounds
+    the GMRES iterations of one solve.
     """
     N = K.shape[0]
     K = _canonical(K)
@@ -206,56 +212,84 @@ def _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol, maxiter)
     return (np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs]))
 
 
-def _refined_solve(solve, K, rho, f, C, g, rtol, maxiter, tol=1e-10):
-    """:func:`_schur_complement_solve` and, if the residual of the saddle-point
-    system exceeds ``tol |[f; g]|``, one correction from that residual."""
-    scale = tol * np.sqrt(f @ f + g @ g)
-    d, lam = _schur_complement_solve(solve, rho, f, C, g, rtol, maxiter)
-    for attempt in range(2):
+#: the backward error of the saddle-point system (:func:`_backward_error`) at
+#: which an augmented Lagrangian solve is accepted after its refinements
+#: (SuperLU's direct solves of the saddle point reach 1e-13 to 1e-8)
+ACCEPTED_BACKWARD_ERROR = 1e-12
+
+
+def _refined_solve(solve, K, rho, f, C, g, rtol, maxiter, refinements=3):
+    """:func:`_schur_complement_solve`, then corrections from the residual of
+    the saddle-point system (iterative refinement) while its backward error
+    is above ``rtol``; raises LinAlgError when it ends above
+    :data:`ACCEPTED_BACKWARD_ERROR`."""
+    norms = (spla.norm(K, np.inf), spla.norm(C, np.inf), spla.norm(C, 1))
+    d, lam = _schur_complement_solve(solve, rho, f, C, g, maxiter)
+    for k in range(refinements + 1):
         r_f = f - K @ d + C.T @ lam
         r_g = g - C @ d
-        residual = np.sqrt(r_f @ r_f + r_g @ r_g)
-        if residual <= scale:
-            return d, lam
-        if attempt == 0:
-            dd, dlam = _schur_complement_solve(solve, rho, r_f, C, r_g, rtol, maxiter)
-            d, lam = d + dd, lam + dlam
-    raise np.linalg.LinAlgError(
-        f"the augmented Lagrangian solve left a residual {residual:.2e} of the "
-        f"saddle-point system (wanted below {scale:.2e}); the system may be singular: "
-        f"use solver 'superlu' or 'pardiso'")
+        error = _backward_error(norms, f, g, d, lam, r_f, r_g)
+        if error <= rtol or k == refinements:
+            break
+        dd, dlam = _schur_complement_solve(solve, rho, r_f, C, r_g, maxiter)
+        d, lam = d + dd, lam + dlam
+    if not error <= ACCEPTED_BACKWARD_ERROR:
+        raise np.linalg.LinAlgError(
+            f"the augmented Lagrangian solve left a backward error {error:.2e} in the "
+            f"saddle-point system (accepted: {ACCEPTED_BACKWARD_ERROR:g}); it may be "
+            f"singular: use solver 'superlu' or 'pardiso'")
+    return d, lam
 
 
-def _schur_complement_solve(solve, rho, f, C, g, rtol, maxiter):
+def _backward_error(norms, f, g, d, lam, r_f, r_g):
+    """The normwise backward error of ``d, λ`` in each block row of the
+    saddle-point system (max norms): ``|r_f| / (|K| |d| + |Cᵀ| |λ| + |f|)``
+    and ``|r_g| / (|C| |d| + |g|)``, the larger of the two.  Each block row
+    is measured in its own units (forces, displacements).  A backward-stable
+    direct solve makes both of the order of the unit round-off times the
+    growth of its pivots.  ``norms``: ``|K|``, ``|C|`` and ``|Cᵀ|``."""
+    def size(v):
+        return np.abs(v).max(initial=0.0)
+
+    norm_K, norm_C, norm_Ct = norms
+    force = norm_K * size(d) + norm_Ct * size(lam) + size(f)
+    value = norm_C * size(d) + size(g)
+    return max(size(r_f) / force if force > 0 else 0.0,
+               size(r_g) / value if value > 0 else 0.0)
+
+
+#: relative residual of GMRES on the Schur complement before a refinement
+SCHUR_RTOL = 1e-10
+
+
+def _schur_complement_solve(solve, rho, f, C, g, maxiter):
     """GMRES on ``ρ C K_ρ⁻¹ Cᵀ λ = ρ (g - C K_ρ⁻¹ (f + ρ Cᵀ g))``; ``solve``
     applies ``K_ρ⁻¹``.  Returns ``d = K_ρ⁻¹ (f + ρ Cᵀ g + Cᵀ λ)`` and ``λ``.
 
-    The factor ``ρ`` scales the operator to eigenvalues near 1.  Full GMRES
-    (restarted only after 50 iterations) on the ``len(C)`` multipliers, to an
-    absolute residual of ``rtol ρ max(|g|, |C K_ρ⁻¹ (f + ρ Cᵀ g)|)``.
+    The factor ``ρ`` scales the operator to eigenvalues of at most 1.
+    GMRES (restarted after 50 iterations, at most ``maxiter`` in all) to
+    the relative residual :data:`SCHUR_RTOL`, which is all the iteration
+    needs to do: :func:`_refined_solve` corrects the rest.  The eigenvalues
+    near zero belong to combinations of the condition rows that nearly
+    cancel (weak RK rows: ``|C|`` over its smallest singular value 1e3-1e4),
+    and the residual attainable in ``λ`` is limited by them.
     """
     m = C.shape[0]
     rhs = f + rho * (C.T @ g)
     d0 = solve(rhs)
-    Cd0 = C @ d0
-    b = rho * (g - Cd0)
-    stop = rtol * rho * max(np.linalg.norm(g), np.linalg.norm(Cd0), 1e-300)
-    if np.linalg.norm(b) <= stop:
+    b = rho * (g - C @ d0)
+    if not np.any(b):
         return d0, np.zeros(m)
-    iterations = [0]
 
     def schur(lam):
-        iterations[0] += 1
         return rho * (C @ solve(C.T @ lam))
 
     restart = min(m, 50)
-    lam, info = gmres(LinearOperator((m, m), matvec=schur, dtype=float), b, rtol=0.0,
-                      atol=stop, restart=restart, maxiter=-(-maxiter // restart))
-    if info != 0 or not np.all(np.isfinite(lam)):
-        raise np.linalg.LinAlgError(
-            f"GMRES on the Schur complement of the constraints did not converge in "
-            f"{iterations[0]} iterations; the saddle-point system may be singular: use "
-            f"solver 'superlu' or 'pardiso'")
+    lam, _ = gmres(LinearOperator((m, m), matvec=schur, dtype=float), b, rtol=SCHUR_RTOL,
+                   atol=0.0, restart=restart, maxiter=-(-maxiter // restart))
+    if not np.all(np.isfinite(lam)):
+        raise np.linalg.LinAlgError("GMRES on the Schur complement of the constraints "
+                                    "gave non-finite multipliers (a singular K + ρCᵀC?)")
     return solve(rhs + C.T @ lam), lam
 
 

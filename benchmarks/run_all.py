@@ -63,6 +63,7 @@ SUITE = {
                      (6, 0.5)),
     "basis_build": ([], ["--sizes", "1e4", "17227", "--repeat", "1"], (3, 0.5)),
     "interpolating_basis": ([], ["--repeat", "1"], (0.5, 0.3)),
+    "saddle_point": ([], ["--scene", "billet_3d", "--repeat", "1"], (1, 0.2)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

@@ -139,10 +139,10 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     weak rows), more where rows nearly cancel (80-90 on the thin sheet of
     ``stretch_3d``).  SuperLU's minimum-degree ordering of the
     saddle-point matrix itself reaches the zero diagonal of the multipliers
-    half-way and must pivot off the diagonal there (2840 of 4160 pivots on
+    half-way and must pivot off the diagonal there (2675 of 4160 pivots on
     a coarse 3D RK ring sector with weak symmetry planes), which undoes the
-    ordering: 14.1 million factor entries against 6.6 million for ``K_ρ``,
-    2.8 s against 0.5 s (docs/performance.md).
+    ordering: 14.0 million factor entries against 6.8 million for ``K_ρ``,
+    3.3 s against 0.7 s under load (docs/performance.md).
 
     ``rtol`` is the backward error of the saddle-point system
     (:func:`_backward_error`) that iterative refinement goes for (1e-12,

@@ -146,13 +146,12 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
 
     ``rtol`` is the backward error of the saddle-point system
     (:func:`_backward_error`) that iterative refinement goes for (1e-12,
-    about 5000 units of round-off; SuperLU's direct solves of the same
-    systems leave 1e-13 to 1e-8), at most three corrections from the
-    residual; below :data:`ACCEPTED_BACKWARD_ERROR` the solve is accepted,
-    else, or when ``K_ρ``
-    is singular, SuperLU factors the saddle-point matrix itself; an
-    SPD-only backend asked for by name raises instead.  ``maxiter`` bounds
-    the GMRES iterations of one solve.
+    about 5000 units of round-off; SuperLU's direct solves of the 3D
+    scenes' systems leave 2e-14 to 2e-8), at most three corrections from
+    the residual; below :data:`ACCEPTED_BACKWARD_ERROR` the solve is
+    accepted, else, or when ``K_ρ`` is singular, SuperLU factors the
+    saddle-point matrix itself; an SPD-only backend asked for by name
+    raises instead.  ``maxiter`` bounds the GMRES iterations of one solve.
     """
     N = K.shape[0]
     K = _canonical(K)
@@ -215,8 +214,8 @@ def _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol, maxiter)
 
 #: the backward error of the saddle-point system (:func:`_backward_error`) at
 #: which an augmented Lagrangian solve is accepted after its refinements
-#: (SuperLU's direct solves of the saddle point of the 3D scenes leave 1e-13
-#: to 1e-8; its own check accepts a residual of 1e-10 |b|)
+#: (SuperLU's direct solves of the saddle point of the 3D scenes leave 2e-14
+#: to 2e-8; its own check accepts a residual of 1e-10 |b|)
 ACCEPTED_BACKWARD_ERROR = 1e-10
 
 
@@ -273,8 +272,9 @@ def _schur_complement_solve(solve, rho, f, C, g, maxiter):
     the relative residual :data:`SCHUR_RTOL`, which is all the iteration
     needs to do: :func:`_refined_solve` corrects the rest.  The eigenvalues
     near zero belong to combinations of the condition rows that nearly
-    cancel (weak RK rows: ``|C|`` over its smallest singular value 1e3-1e4),
-    and the residual attainable in ``λ`` is limited by them.
+    cancel (``|C|`` over its smallest singular value: 140 for the weak
+    rows of the ring sector, 3e4 on the thin sheet of ``stretch_3d``), and
+    the residual attainable in ``λ`` is limited by them.
     """
     m = C.shape[0]
     rhs = f + rho * (C.T @ g)

@@ -175,11 +175,6 @@ SETTLED_RESIDUAL = 100.0
 #: cost an iteration more with one linear solver than with another)
 FULL_STEP_ENERGY = 1e-10
 
-#: prescribed values count as met when ``|C d - g|`` is below this fraction
-#: of ``|g| + |C| |d|`` (the round-off of the constrained solves: 1e-15 to
-#: 5e-13 relative for the direct and augmented-Lagrangian ones)
-GAP_ROUND_OFF = 1e-11
-
 
 def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
@@ -406,14 +401,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
                                  bad)
         return ev, tangent, r, rel
 
-    C_norm = float(np.asarray(abs(C).sum(axis=1)).max()) if C.shape[0] else 0.0
-
-    def gap_tol(d):
-        """Round-off of ``C d - g``, relative to ``|g|`` and ``|C| |d|`` (so the
-        same in any units, and met by every linear solver)."""
-        return GAP_ROUND_OFF * (np.abs(g).max(initial=0.0)
-                                + C_norm * np.abs(d).max(initial=0.0))
-
+    gap_tol = 1e-12 * max(np.abs(g).max(initial=0), 1.0)
     d = d.copy()
     current = state(d)
     residuals, energies = [current[3]], []
@@ -425,7 +413,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
         energy = abs(delta @ current[2])
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)
-        if (np.abs(gap).max(initial=0.0) <= gap_tol(d)
+        if (np.abs(gap).max(initial=0.0) <= gap_tol
                 and energies[-1] > FULL_STEP_ENERGY):
             step, trial = _line_search(state, d, delta, current[2])
         else:  # meets the prescribed values, or a correction at round-off
@@ -436,7 +424,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
         log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}"
             + (f", step {step:.3g}" if step < 1 else ""))
         settled = energies[-1] <= ROUND_OFF_ENERGY and rel <= SETTLED_RESIDUAL * tol
-        if (rel <= tol or settled) and np.abs(g - C @ d).max(initial=0.0) <= gap_tol(d):
+        if (rel <= tol or settled) and np.abs(g - C @ d).max(initial=0.0) <= gap_tol:
             ev, _, r, _ = current
             return d, ev, fit.multipliers(-r), it, residuals, energies
         if it > 3 and rel > 1e3 * residuals[1]:

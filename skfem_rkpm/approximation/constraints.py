@@ -19,12 +19,20 @@ __all__ = ["transformation", "direction", "Constraint", "ConstraintSet",
            "nodal_constraint", "weak_constraint"]
 
 
-def transformation(basis):
-    """Λᵀ of a basis: its ``nodal_matrix`` or, for FEM bases, the identity."""
+def transformation(basis, N=None):
+    """Λᵀ of a basis: its ``nodal_matrix`` or, for FEM bases, the identity.
+
+    For a system of ``N > basis.N`` unknowns (rows added to the basis's
+    matrix, e.g. a Lagrange multiplier of ``∫ u = c``) the unknowns after the
+    basis's coefficients are their own values: Λᵀ gets identity rows for them.
+    """
     nodal = getattr(basis, "nodal_matrix", None)
-    if nodal is None:
-        return sp.identity(basis.N, format="csr")
-    return nodal
+    T = sp.identity(basis.N, format="csr") if nodal is None else sp.csr_matrix(nodal)
+    extra = (basis.N if N is None else N) - basis.N
+    if extra < 0:
+        raise ValueError(f"the system has {N} unknowns, fewer than the {basis.N} "
+                         f"coefficients of the basis: pass the matrix of this basis")
+    return sp.block_diag([T, sp.identity(extra)], format="csr") if extra else T
 
 
 class Constraint:

@@ -95,7 +95,7 @@ def solve(K, f, basis, D=None, x=None, return_reactions=False):
                          f"k right-hand sides")
     D = np.zeros(0, dtype=np.int64) if D is None else np.asarray(D, dtype=np.int64)
     g = _prescribed_values(D, x, N, None if f.ndim == 1 else f.shape[1])
-    d, reactions = solve_constrained(K, f, transformation(basis)[D], g)
+    d, reactions = solve_constrained(K, f, transformation(basis, N)[D], g)
     return (d, reactions) if return_reactions else d
 
 

@@ -64,19 +64,6 @@ def _dofs(S, N, what):
     return S
 
 
-def _nodal_rows(basis, N):
-    """``Λᵀ`` of ``basis`` for a system of ``N`` unknowns: the basis's
-    coefficients first, then ``N - basis.N`` extra unknowns (Lagrange
-    multipliers of rows added to the system, e.g. ``∫ u = 0``), which are
-    their own values (identity rows)."""
-    T = transformation(basis).tocsr()
-    extra = N - T.shape[0]
-    if extra < 0:
-        raise ValueError(f"the system has {N} unknowns, fewer than the {T.shape[0]} "
-                         f"coefficients of the basis: pass the matrix of this basis")
-    return sp.block_diag([T, sp.identity(extra)], format="csr") if extra else T
-
-
 def _split(N, I, D):
     if (I is None) == (D is None):
         raise ValueError("give either D (the dofs whose nodal values are prescribed) or "
@@ -118,7 +105,7 @@ class NodalElimination:
     """
 
     def __init__(self, basis, I, D, N=None):
-        T = _nodal_rows(basis, basis.N if N is None else N)
+        T = transformation(basis, N)
         N = T.shape[0]
         self.N, self.I, self.D = N, I, D
         C = T[D]
@@ -246,7 +233,7 @@ def enforce(A, b=None, x=None, I=None, D=None, diag=1.0, overwrite=False, basis=
     elim = NodalElimination(basis, I, D, N)
     rows = sp.csr_matrix((np.ones(N), (np.concatenate([I, D]), np.arange(N))),
                          shape=(N, N))
-    C = _nodal_rows(basis, N)[D]
+    C = transformation(basis, N)[D]
     A_e = (rows @ sp.vstack([elim.Z.T @ sp.csr_matrix(A), diag * C])).tocsr()
     if b is None:
         return A_e
@@ -280,7 +267,7 @@ def penalize(A, b=None, x=None, I=None, D=None, epsilon=None, overwrite=False,
         return skfem.penalize(A, b, x=x, I=I, D=D, epsilon=epsilon, overwrite=overwrite)
     N = A.shape[0]
     I, D = _split(N, I, D)
-    C = _nodal_rows(basis, N)[D]
+    C = transformation(basis, N)[D]
     if epsilon is None:
         epsilon = 1e-10 / np.abs(A.diagonal()[D]).max(initial=0.0)
     if not (np.isfinite(epsilon) and epsilon > 0):

@@ -24,7 +24,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 
 from ..approximation.constraints import transformation
 from .backend import _canonical
-from .linear import Auto, NotPositiveDefinite, SuperLU, make_solver
+from .linear import Auto, DenseLU, NotPositiveDefinite, SuperLU, make_solver
 
 __all__ = ["solve", "solve_constrained", "linear_solve", "solve_saddle_point"]
 
@@ -176,11 +176,23 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
         if solution is not None:
             return solution
         backend = solver.backend("superlu") if isinstance(solver, Auto) else backend
-    A = _canonical(sp.bmat([[K, C.T], [C, None]]))
+    A = _saddle_matrix(K, C, dense=isinstance(backend, DenseLU))
     backend.factor(A)
     solver.A = A
     sol = backend.solve(np.concatenate([f, g]))
     return sol[:N], -sol[N:]
+
+
+def _saddle_matrix(K, C, dense=False):
+    """``[[K, Cᵀ], [C, 0]]``, sparse, or a dense array for dense LU."""
+    if not dense:
+        return _canonical(sp.bmat([[K, C.T], [C, None]]))
+    N, m = K.shape[0], C.shape[0]
+    A = np.zeros((N + m, N + m))
+    A[:N, :N] = K.toarray()
+    A[N:, :N] = C.toarray()
+    A[:N, N:] = A[N:, :N].T
+    return A
 
 
 def _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol, maxiter):

@@ -53,8 +53,11 @@ three the constraints are handled by an augmented Lagrangian instead (see
 that function).
 """
 
+import time
+
 import numpy as np
 import scipy.linalg
+import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_backend,
@@ -79,8 +82,24 @@ class DenseLU(Solver):
 
     name = "dense"
 
+    def factor(self, A):
+        """Factor ``A``, sparse or a dense array (then used as it is: a small
+        system needs no sparse bookkeeping, which costs as much as its LU)."""
+        if sp.issparse(A):
+            return super().factor(A)
+        A = np.asarray(A, dtype=float)
+        if A.ndim != 2 or A.shape[0] != A.shape[1]:
+            raise ValueError(f"the matrix must be square, it is {A.shape}")
+        clock = time.perf_counter()
+        self.A = A
+        self._factor(A)
+        self.stats["factorizations"] += 1
+        self.stats["factor_seconds"] += time.perf_counter() - clock
+        return self
+
     def _factor(self, A):
-        self._lu = scipy.linalg.lu_factor(A.toarray(), check_finite=False)
+        dense = A.toarray() if sp.issparse(A) else A
+        self._lu = scipy.linalg.lu_factor(dense, check_finite=False)
 
     def _solve(self, b):
         return scipy.linalg.lu_solve(self._lu, b, check_finite=False)

@@ -7,7 +7,8 @@ from .approximation.basis_views import BasisIdiomError, CoefficientsNotNodalErro
 from .approximation.interior_facet_basis import RKInteriorFacetBasis
 from .approximation.constraints import transformation
 from .solvers.constrained import linear_solve, solve
-from .solvers.idioms import coefficients, condense, eigen, enforce, penalize
+from .solvers.idioms import (PartialSolutionWarning, coefficients, condense, eigen, enforce,
+                             penalize)
 from .approximation.kernels import cubic_spline, quartic_spline
 from .meshes import local_spacing
 from .approximation.shape import ShapeTable, SingularMomentError, rk_shape_functions
@@ -19,6 +20,7 @@ __all__ = [
     "BasisIdiomError",
     "CoefficientsNotNodalError",
     "CorrectedTrialWarning",
+    "PartialSolutionWarning",
     "RKBasis",
     "RKFacetBasis",
     "RKInteriorFacetBasis",

@@ -2,7 +2,7 @@
 
 Five of scikit-fem's examples (docs/examples in its repository) written as a
 scikit-fem user writes them, each once, with the lines an RK basis needs
-marked ``# RK:``:
+marked ``# RK``:
 
 - ex09, 3D Poisson ``-Δu = 1`` on the unit cube (tetrahedra), conjugate
   gradients on the condensed system;
@@ -44,7 +44,8 @@ from skfem.helpers import (ddot, det, dot, eye, grad, identity, inv, mul, sym_gr
 from skfem.models.elasticity import lame_parameters
 from skfem.models.poisson import laplace, mass, unit_load
 
-from skfem_rkpm import CorrectedTrialWarning, RKBasis, asm, coefficients, condense, penalize
+from skfem_rkpm import (CorrectedTrialWarning, PartialSolutionWarning, RKBasis, asm,
+                        coefficients, condense, penalize)
 
 
 def make_basis(mesh, kind, fem_element, **fem_kwargs):
@@ -90,15 +91,16 @@ def cube_centre_series(terms=1000):
 def poisson_cube(kind, n, pc=None):
     """ex09 on n³ cubes of 6 tetrahedra (ex09 uses n = 15).
 
-    RK lines: the basis; ``condense`` from ``skfem_rkpm`` with ``basis=`` and
-    its expanded result passed to ``solve`` (ex09's ``expand=False`` and
+    RK lines: the basis; ``skfem_rkpm.asm`` for ex09's ``laplace.assemble``
+    and ``unit_load.assemble``; ``condense`` from ``skfem_rkpm`` with
+    ``basis=`` and its expanded result passed to ``solve`` (ex09's ``expand=False`` and
     ``x[I] = solve(...)`` would leave the coefficients at the boundary zero,
     not the nodal values; see the test)."""
     p = np.linspace(0, 1, n + 1)
     m = MeshTet.init_tensor(p, p, p)
     basis = make_basis(m, kind, ElementTetP1())
-    A = asm(laplace, basis)
-    b = asm(unit_load, basis)
+    A = asm(laplace, basis)                                             # RK
+    b = asm(unit_load, basis)                                           # RK
     I = m.interior_nodes()
     Aint, bint, x0, I_expand = condense(A, b, I=I, basis=basis)         # RK
     x = solve(Aint, bint, x0, I_expand,                                  # RK
@@ -153,7 +155,7 @@ def test_poisson_cube_preconditioned_cg_and_the_expand_false_idiom(cube_runs):
     boundary *coefficients* zero, but the boundary *values* then are not:
     measured up to 0.0023, 4 % of max u (asserted: above 2 %, ten orders
     above the round-off of the expanded solution), while ``x0 + Z z`` keeps
-    them at zero.  ILU with ex09's ``drop_tol=1e-3`` does not converge on
+    them at zero; ``condense`` says so with a ``PartialSolutionWarning``.  ILU with ex09's ``drop_tol=1e-3`` does not converge on
     the dense condensed RK matrix (docs/rk_basis.md); ``drop_tol=1e-4`` does.
     """
     m, basis, A, b, x, (Aint, bint, x0, I_expand) = cube_runs["vci_symmetric"]
@@ -162,7 +164,8 @@ def test_poisson_cube_preconditioned_cg_and_the_expand_false_idiom(cube_runs):
     assert np.abs(x_ilu - x).max() <= 3.3e-6 * np.abs(x).max()
     I = m.interior_nodes()
     naive = basis.zeros()
-    naive[I] = solve(*condense(A, b, I=I, expand=False, basis=basis))
+    with pytest.warns(PartialSolutionWarning):
+        naive[I] = solve(*condense(A, b, I=I, expand=False, basis=basis))
     boundary = np.abs(basis.nodal_values(naive)[basis.get_dofs()]).max()
     assert boundary > 0.02 * basis.nodal_values(x).max()
 
@@ -202,7 +205,7 @@ def elastic_block(kind, refine):
     K = asm(elastic_stiffness, basis)                                   # RK
     u = basis.zeros()
     u[basis.get_dofs("right").nodal["u^1"]] = 0.3
-    u = solve(*condense(K, x=u, D=basis.get_dofs({"left", "right"}), basis=basis))
+    u = solve(*condense(K, x=u, D=basis.get_dofs({"left", "right"}), basis=basis))  # RK
     displacement = nodal(basis, u).reshape(-1, 3).T                     # RK
     return 0.5 * u @ K @ u, displacement, m
 
@@ -476,7 +479,9 @@ def twisted_bar(kind, nx=9, ny=2, nsteps=7, tol=1e-10):
     the increments of the prescribed values from the current *nodal*
     values (ex43 subtracts ``u`` itself, which on the fixed end relies on
     its entries being exactly zero; here every prescribed increment is
-    target minus current value); ``condense`` with ``basis=``.
+    target minus current value: with ex43's lines the round-off nodal values
+    at the fixed end double in every iteration, and Newton stops converging
+    in step 5); ``condense`` with ``basis=``.
 
     Returns the Newton iterations per step (0 where a step did not reach
     ``tol`` in 10), the stored energy, and the displacement at (0.5, 0.1, 0.1).
@@ -497,8 +502,8 @@ def twisted_bar(kind, nx=9, ny=2, nsteps=7, tol=1e-10):
         converged = 0
         for iteration in range(10):
             uv = basis.interpolate(u)
-            f = asm(neo_hooke_residual, basis, displacement=uv)
-            K = asm(neo_hooke_tangent, trial, basis, displacement=uv)
+            f = asm(neo_hooke_residual, basis, displacement=uv)         # RK
+            K = asm(neo_hooke_tangent, trial, basis, displacement=uv)   # RK
             du_D = -nodal(basis, u)             # RK: prescribed minus current values
             du_D[along] += c * -0.1
             du_D[side] += y * np.cos(c * np.pi) - z * np.sin(c * np.pi) - y

@@ -32,6 +32,8 @@ n = 64), and the reduced matrix about twice the entries of ``K``
 accept for a change of variables.
 """
 
+import warnings
+
 import numpy as np
 import scipy.sparse as sp
 import skfem
@@ -39,10 +41,17 @@ from scipy.sparse.linalg import eigs, eigsh, splu
 
 from ..approximation.constraints import transformation
 
-__all__ = ["condense", "enforce", "penalize", "eigen", "coefficients", "NodalElimination"]
+__all__ = ["condense", "enforce", "penalize", "eigen", "coefficients", "NodalElimination",
+           "PartialSolutionWarning"]
 
 #: dense entries of ``C_D⁻¹ C_I`` above which :func:`condense` refuses (160 MB)
 DENSE_LIMIT = 20_000_000
+
+
+class PartialSolutionWarning(UserWarning):
+    """``condense(..., expand=False)`` on an RK basis: the reduced system's
+    solution holds the coefficients off ``D`` only, and those at ``D`` are
+    not zero (scikit-fem's ``x[I] = solve(...)`` would leave them zero)."""
 
 
 def _is_rk(basis):
@@ -184,13 +193,24 @@ def condense(A, b=None, x=None, I=None, D=None, expand=True, basis=None):
         that ``skfem.solve`` returns ``d = d₀ + Z z``
         (:class:`NodalElimination`).  With ``expand=False`` the caller
         expands a solution ``z`` itself: ``d = x_r + I_r[1](z)`` of the
-        expanded call.
+        expanded call; a :class:`PartialSolutionWarning` says so, since
+        scikit-fem's ``x[I] = z`` would leave the coefficients at ``D``
+        zero and miss the prescribed nodal values.
     """
     if not _is_rk(basis):
         return skfem.condense(A, b, x=x, I=I, D=D, expand=expand)
     N = A.shape[0]
     I, D = _split(N, I, D)
     elim = NodalElimination(basis, I, D, N)
+    if not expand and len(D):
+        warnings.warn(
+            f"condense(..., expand=False) on an RK basis: the solution z of the reduced "
+            f"system holds the coefficients of the {len(I)} dofs I only; the {len(D)} "
+            f"coefficients at D are not zero but follow from z, so x[I] = z in a zero "
+            f"vector misses the prescribed nodal values.  Keep the expanded result, "
+            f"A, b, x0, I = condense(..., basis=basis), and call skfem.solve(A, b, x0, "
+            f"I, solver=...), which returns all coefficients",
+            PartialSolutionWarning, stacklevel=2)
     if b is None:
         if x is None:
             reduced = (elim.reduce(A),)

@@ -79,15 +79,18 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores, "
+          f"CPU seconds, median of {args.repeat}\n")
+    print("| example | basis | CPU s | result |")
+    print("|---|---|---|---|")
     for title, run, kinds in CASES:
         for label, kind in kinds:
             seconds, result = timed(lambda: run(kind), args.repeat)
-            print(f"{title} | {label} ({kind}) | {seconds:.2f} s | {result}", flush=True)
+            print(f"| {title} | {label} ({kind}) | {seconds:.2f} | {result} |", flush=True)
         if run is heat:
             seconds, result = timed(lambda: heat("fem", ElementQuad2()), args.repeat)
-            print(f"{title} | Q2 (fem) | {seconds:.2f} s | {result}", flush=True)
-    print(f"load average {os.getloadavg()[0]:.1f}")
+            print(f"| {title} | Q2 (fem) | {seconds:.2f} | {result} |", flush=True)
+    print(f"\nload average {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

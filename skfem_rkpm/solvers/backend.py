@@ -116,6 +116,10 @@ class Solver:
             self.stats["analyses"] += 1
             self.stats["analyze_seconds"] += time.perf_counter() - clock
             self._pattern = (A.shape, A.indptr.copy(), A.indices.copy())
+        return self._factor_timed(A)
+
+    def _factor_timed(self, A):
+        """``_factor(A)``, kept as the factored matrix and counted in ``stats``."""
         clock = time.perf_counter()
         self.A = A
         self._factor(A)

@@ -53,8 +53,6 @@ three the constraints are handled by an augmented Lagrangian instead (see
 that function).
 """
 
-import time
-
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
@@ -90,12 +88,7 @@ class DenseLU(Solver):
         A = np.asarray(A, dtype=float)
         if A.ndim != 2 or A.shape[0] != A.shape[1]:
             raise ValueError(f"the matrix must be square, it is {A.shape}")
-        clock = time.perf_counter()
-        self.A = A
-        self._factor(A)
-        self.stats["factorizations"] += 1
-        self.stats["factor_seconds"] += time.perf_counter() - clock
-        return self
+        return self._factor_timed(A)
 
     def _factor(self, A):
         dense = A.toarray() if sp.issparse(A) else A

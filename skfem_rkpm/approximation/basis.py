@@ -600,7 +600,7 @@ class RKFacetBasis(FacetViews, _RKBase):
         quadrature = None
         if intorder is None and basis.integration in NODAL_SCHEMES:
             # the points of the smoothing cells' boundary segments
-            quadrature = boundary_rule(basis.segment_points)
+            quadrature = boundary_rule(basis.segment_points, mesh)
         geometry = facet_geometry(mesh, basis.intorder if intorder is None
                                   else intorder, facets, quadrature)
         xb = geometry.global_coordinates().reshape(mesh.dim(), -1)

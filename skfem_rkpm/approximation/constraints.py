@@ -154,7 +154,7 @@ def weak_constraint(basis, facets, component, intorder=None):
     find = _named_facets(mesh, facets)
     quadrature = None
     if intorder is None and getattr(basis, "nodal_quadrature", None) is not None:
-        quadrature = boundary_rule(basis.segment_points)
+        quadrature = boundary_rule(basis.segment_points, mesh)
     if intorder is None:
         intorder = getattr(basis, "intorder", None) or 2 * basis.elem.maxdeg
     hats = FacetBasis(mesh, type(mesh).elem(), facets=find, intorder=intorder,

@@ -55,6 +55,7 @@ import scipy.sparse as sp
 from skfem.element import DiscreteField
 
 from .basis_views import linear_mesh_class
+from .median_dual_3d import composite_facet_rule, median_dual_3d, mesh_kind
 from .shape import ShapeTable
 
 __all__ = ["NODAL_SCHEMES", "SmoothingCells", "smoothing_cells", "boundary_rule",
@@ -64,17 +65,23 @@ __all__ = ["NODAL_SCHEMES", "SmoothingCells", "smoothing_cells", "boundary_rule"
 NODAL_SCHEMES = ("scni", "dni")
 
 
-def boundary_rule(npoints):
-    """Composite Gauss rule on [0, 1]: ``npoints`` points on each half.
+def boundary_rule(npoints, mesh=None):
+    """The rule of the smoothing cells' boundary pieces on one reference facet.
 
-    SCNI cells split every boundary edge at its midpoint; loads integrated
-    with this rule on whole facets see exactly the points of the cells.
+    2D: composite Gauss rule on [0, 1], ``npoints`` points on each half (SCNI
+    cells split every boundary edge at its midpoint).  3D (``mesh`` of
+    tetrahedra or hexahedra): the facet split into the triangles vertex - edge
+    midpoint - facet centroid, each with the triangle rule
+    (:func:`~.median_dual_3d.composite_facet_rule`).  Loads integrated with
+    this rule on whole facets see exactly the points of the cells.
 
     Returns
     -------
-    X : ndarray, shape (1, 2 * npoints)
-    W : ndarray, shape (2 * npoints,)
+    X : ndarray, shape (facet dim, nq)
+    W : ndarray, shape (nq,)
     """
+    if mesh is not None and mesh.dim() == 3:
+        return composite_facet_rule(mesh_kind(mesh), npoints)
     t, w = _gauss01(npoints)
     return np.concatenate([t / 2, 0.5 + t / 2])[None, :], np.concatenate([w, w]) / 2
 
@@ -88,23 +95,34 @@ def _gauss01(npoints):
 class SmoothingCells:
     """The pieces of the smoothing cells and the segments that bound them.
 
+    In 3D the "segments" are the planar triangles that bound the pieces
+    (:func:`~.median_dual_3d.median_dual_3d`) and ``area`` is a volume.
+
     Attributes
     ----------
     owner : ndarray, shape (npieces,)
         Particle (mesh vertex) of each piece.
-    corners : ndarray, shape (dim, npieces, 4)
-        Piece corners, counter-clockwise: vertex, midpoint of the next
-        edge, cell centroid, midpoint of the previous edge.
+    corners : ndarray, shape (dim, npieces, 4) or (3, npieces, 8)
+        Piece corners.  2D, counter-clockwise: vertex, midpoint of the next
+        edge, cell centroid, midpoint of the previous edge.  3D: vertex,
+        three edge midpoints, three face centroids, cell centroid.
     area : ndarray, shape (npieces,)
+        Area (2D) or volume (3D) of every piece.
     segment_points : ndarray, shape (dim, nsegments, nq)
-        Gauss points of every distinct segment (half edges, then spokes).
+        Quadrature points of every distinct segment (2D: half edges, then
+        spokes) or triangle (3D).
     segment_weights : ndarray, shape (nq,)
-        Gauss weights on [0, 1].
-    segment_ends : ndarray, shape (dim, 2, nsegments)
-        Start and end point of every segment.
+        Weights on the reference segment or triangle, summing to 1.
+    segment_ends : ndarray, shape (dim, 2 or 3, nsegments)
+        Start and end point of every segment, corners of every triangle.
     incidence : scipy.sparse.csr_matrix, shape (npieces, nsegments)
-        ``±1``: the piece boundary runs along (against) the segment.
+        ``±1``: the piece boundary runs along (against) the segment, or the
+        triangle's normal points out of (into) the piece.
     nparticles : int
+    segment_area : ndarray, shape (dim, nsegments)
+        ``∫ n dΓ`` over every segment or triangle as stored: 2D ``(Δy, -Δx)``
+        (segment traversed with the domain on its left), 3D half the cross
+        product of two sides.
     """
 
     owner: np.ndarray
@@ -115,6 +133,7 @@ class SmoothingCells:
     segment_ends: np.ndarray
     incidence: sp.csr_matrix
     nparticles: int
+    segment_area: np.ndarray
 
     @property
     def npieces(self):
@@ -122,7 +141,7 @@ class SmoothingCells:
 
     @property
     def cell_area(self):
-        """``A_L``: area of each particle's smoothing cell."""
+        """``A_L``: area (volume in 3D) of each particle's smoothing cell."""
         return np.bincount(self.owner, self.area, minlength=self.nparticles)
 
     @property
@@ -134,12 +153,11 @@ class SmoothingCells:
     def segment_normals(self, weight=None):
         """``∫_seg f n dΓ`` as weights of the segment points: (dim, nsegments, nq).
 
-        For a segment from ``a`` to ``b`` (traversed with the domain on the
-        left), ``n dΓ = (Δy, -Δx) dt``.  ``weight`` (nsegments, nq) multiplies
+        The normal is constant on a straight segment or planar triangle:
+        ``n dΓ = segment_area · w_q``.  ``weight`` (nsegments, nq) multiplies
         the integrand (``R`` for axisymmetric cells).
         """
-        delta = self.segment_ends[:, 1] - self.segment_ends[:, 0]
-        ndg = np.stack([delta[1], -delta[0]])[:, :, None] * self.segment_weights
+        ndg = self.segment_area[:, :, None] * self.segment_weights
         return ndg if weight is None else ndg * weight
 
     def piece_rule(self, npoints):
@@ -168,24 +186,31 @@ class SmoothingCells:
 
 
 def smoothing_cells(mesh, npoints=2):
-    """The median dual cells of a 2D triangle or quadrilateral mesh.
+    """The median dual cells of a triangle, quadrilateral, tetrahedron or
+    hexahedron mesh.
 
     Parameters
     ----------
-    mesh : skfem.MeshTri or skfem.MeshQuad
+    mesh : skfem.MeshTri, skfem.MeshQuad, skfem.MeshTet or skfem.MeshHex
         Its vertices are the particles.
     npoints : int
-        Gauss points on every segment (half edge or spoke).
+        Gauss points on every segment (half edge or spoke); in 3D it selects
+        the rule on every triangle (:func:`~.median_dual_3d.triangle_rule`).
 
     Raises
     ------
     ValueError
-        For 3D meshes, and for cells of zero or inverted-and-degenerate area
-        (names the cell).
+        For other cells, for cells of zero area (volume) and, in 3D, for
+        pieces of non-positive volume (names the cell).
     """
+    if mesh.dim() == 3:
+        d = median_dual_3d(mesh, npoints)
+        return SmoothingCells(d["owner"], d["corners"], d["volume"], d["points"],
+                              d["weights"], d["ends"], d["incidence"], mesh.nvertices,
+                              d["area_vectors"])
     if mesh.dim() != 2:
-        raise ValueError(f"nodal integration builds smoothing cells on 2D meshes only "
-                         f"(this mesh is {mesh.dim()}D); use integration='vci' in 3D")
+        raise ValueError(f"nodal integration builds smoothing cells on 2D and 3D meshes "
+                         f"(this mesh is {mesh.dim()}D); use integration='vci'")
     p, t = mesh.p, mesh.t.copy()
     nv, ne = t.shape
     signed = 0.5 * sum(p[0, t[j]] * p[1, t[(j + 1) % nv]] - p[0, t[(j + 1) % nv]] * p[1, t[j]]
@@ -246,8 +271,9 @@ def smoothing_cells(mesh, npoints=2):
     incidence = sp.csr_matrix((np.concatenate(signs),
                                (np.concatenate(rows), np.concatenate(cols))),
                               shape=(npieces, ends.shape[2]))
+    delta = ends[:, 1] - ends[:, 0]
     return SmoothingCells(np.concatenate(owner), corners, area, points, wq, ends,
-                          incidence, mesh.nvertices)
+                          incidence, mesh.nvertices, np.stack([delta[1], -delta[0]]))
 
 
 def smoothed_gradients(cells, segment_values, axisymmetric=False, piece_values=None,

@@ -284,8 +284,9 @@ class RKBasis(CellViews, _RKBase):
         ``"dni"``: direct nodal integration (exact gradients at the
         particles, fails the patch test).  See
         :mod:`skfem_rkpm.approximation.nodal_integration`; both need the
-        particles to be the vertices of a 2D mesh, and the "cells" of the
-        basis are then the particles (``nelems = nnodes``, one point each).
+        particles to be the vertices of a linear triangle, quadrilateral,
+        tetrahedron or hexahedron mesh, and the "cells" of the basis are
+        then the particles (``nelems = nnodes``, one point each).
     nodes : ndarray, shape (dim, nnodes), optional
         Particle positions; default the mesh vertices.
     radius : float or ndarray, optional
@@ -410,17 +411,28 @@ class RKBasis(CellViews, _RKBase):
 
     @property
     def segment_points(self):
-        """Gauss points per segment of the smoothing cells (nodal schemes)."""
+        """Gauss points per segment of the smoothing cells (nodal schemes).
+
+        2D: ``max(2, (intorder + 2) // 2)`` Gauss points per segment (3 for
+        the default ``intorder=4``).  3D: ``max(2, intorder // 2)``, selecting
+        the rule on the cells' triangles
+        (:func:`~.median_dual_3d.triangle_rule`: 3 points of degree 2 for
+        ``intorder <= 5``, 6 points of degree 4 for 6 and 7).
+        """
+        if self.nodes.shape[0] == 3:
+            return max(2, self.intorder // 2)
         return max(2, (self.intorder + 2) // 2)
 
     def _setup_nodal(self, mesh, nodes, vector):
         """One point per particle (see :mod:`.nodal_integration`)."""
+        self.nodes = nodes  # the dimension selects segment_points
         ntable = self._shape_table(nodes, nodes)
         self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
             nodes.shape[0] if vector else 1), format="csr")
         q = nodal_quadrature(mesh, self.integration,
                              lambda x: self._shape_table(x, nodes, gradients=False), ntable,
-                             self.segment_points, self.axisymmetric)
+                             self.segment_points, self.axisymmetric,
+                             pieces=bool(self.stabilization))
         self.nodal_quadrature = q
         self._setup(mesh, q.geometry, q.table, q.table.grads, nodes, vector)
 

@@ -150,6 +150,22 @@ class SmoothingCells:
         return sp.csr_matrix((np.ones(self.npieces), (self.owner, np.arange(self.npieces))),
                              shape=(self.nparticles, self.npieces))
 
+    def merged(self):
+        """The same cells with one piece each: the whole smoothing cell.
+
+        Segments (triangles) inside a smoothing cell, shared by two of its
+        pieces with opposite signs, cancel exactly and are dropped: what is
+        left bounds the cells.  For schemes that need no piece gradients
+        (SCNI without stabilization), about half the points in 3D.
+        """
+        incidence = (self.to_cells @ self.incidence).tocsc()
+        incidence.eliminate_zeros()
+        keep = np.flatnonzero(np.diff(incidence.indptr))
+        return SmoothingCells(np.arange(self.nparticles), None, self.cell_area,
+                              self.segment_points[:, keep], self.segment_weights,
+                              self.segment_ends[:, :, keep], incidence[:, keep].tocsr(),
+                              self.nparticles, self.segment_area[:, keep])
+
     def segment_normals(self, weight=None):
         """``∫_seg f n dΓ`` as weights of the segment points: (dim, nsegments, nq).
 
@@ -400,7 +416,8 @@ class NodalQuadrature:
     piece_weight: np.ndarray
 
 
-def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=False):
+def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=False,
+                     pieces=True):
     """Nodal quadrature of an RK basis whose particles are the mesh vertices.
 
     Parameters
@@ -415,6 +432,11 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
         Gauss points per segment (and per direction in the pieces).
     axisymmetric : bool
         ``x`` is the radius (see the module docstring).
+    pieces : bool
+        Keep the piece gradients (``jumps``) for the stabilization; without
+        them (and not axisymmetric) the shape functions are evaluated on the
+        boundaries of the whole smoothing cells only
+        (:meth:`SmoothingCells.merged`), and ``jumps`` is None.
 
     Returns
     -------
@@ -434,6 +456,9 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
     area = cells.cell_area
     if scheme == "dni":
         return NodalQuadrature(nodal, NodalGeometry(mesh.p, area), None, None)
+    pieces = pieces or axisymmetric
+    if not pieces:
+        cells = cells.merged()
     dim, nseg, nq = cells.segment_points.shape
     points = [cells.segment_points.reshape(dim, -1)]
     if axisymmetric:
@@ -441,7 +466,7 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
         points.append(px.reshape(dim, -1))
     table = shape_table(np.hstack(points))
     values = table.matrix()
-    seg_values = values[:nseg * nq]
+    seg_values = values[:nseg * nq] if axisymmetric else values
     piece_values = values[nseg * nq:] if axisymmetric else None
     G, M, measure = smoothed_gradients(cells, seg_values, axisymmetric, piece_values,
                                        *((px, pw) if axisymmetric else (None, None)))
@@ -449,7 +474,7 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
     cell_measure = Q @ measure
     cell_grads = [scale_rows(Q @ g, 1.0 / cell_measure) for g in G]
     jumps = [(scale_rows(g, 1.0 / measure) - Q.T @ cg).tocsr()
-             for g, cg in zip(G, cell_grads)]
+             for g, cg in zip(G, cell_grads)] if pieces else None
     if axisymmetric:
         # one point per particle at the centroid radius R̄ = V/A with value
         # Ψ̄ = (1/A) ∫ Ψ dA and dx = A: the hoop Ψ̄/R̄ and the weight 2π R̄ A
@@ -461,7 +486,7 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
                                jumps, 2 * np.pi * measure)
     geometry = NodalGeometry(mesh.p, area)
     table = nodal_table(_as_csr(nodal, nnodes), cell_grads, nnodes)
-    return NodalQuadrature(table, geometry, jumps, measure)
+    return NodalQuadrature(table, geometry, jumps, measure if pieces else None)
 
 
 def _as_csr(table, nnodes):

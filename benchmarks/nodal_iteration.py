@@ -10,7 +10,12 @@ Part 1, cost.  Two cases at several particle counts:
   support 2 spacings, Gauss degree 4: 3 x 3 points per cell), as in
   ``benchmarks/newton_iteration.py``;
 
-both J2 perfectly plastic (E = 288e3, σ_y = 100), compressed homogeneously
+* ``block``: a unit cube of tetrahedra (``box(..., kind="tet")``, 6 per
+  cube of the grid), 3D, radial support 2 spacings; Gauss+VCI with the
+  default Gauss degree 4 (11 points per tetrahedron) and with degree 2 (4
+  points); SCNI with the default triangle rule (3 points per triangle);
+
+all J2 perfectly plastic (E = 288e3, σ_y = 100), compressed homogeneously
 by 30 % (every point on the plastic branch, the costly path of the return
 map) plus a small random perturbation.  Timed per scheme, median of ``--repeat``
 (CPU time, ``time.process_time``, one BLAS thread):
@@ -20,7 +25,8 @@ map) plus a small random perturbation.  Timed per scheme, median of ``--repeat``
   ``local_bilinear``, ``matrix``), plus the stabilization product and sum
   for stabilized SCNI;
 * *evaluate*: ``SolidProblem.evaluate`` as a whole (kinematics, material,
-  assembly, checks);
+  assembly, checks) with its tangent formed (``.K``: the tangent is formed
+  on demand);
 * *setup*: building the basis and the problem (shape functions, VCI or the
   smoothing cells, the stabilization matrix), done once per run.
 
@@ -34,6 +40,7 @@ particles and shape functions, so the error of the integration scheme is
 not hidden by measuring it at its own points).
 
 Run:  python benchmarks/nodal_iteration.py [--sizes 16 32 64] [--repeat 5]
+      python benchmarks/nodal_iteration.py --cases block --parts cost [--block-sizes 6 10 14]
 """
 
 import os
@@ -53,10 +60,22 @@ SCHEMES = {  # label: RKBasis keywords (Gauss rule: the case's)
     "SCNI α=1e-3": dict(integration="scni", stabilization=1e-3),
     "DNI": dict(integration="dni"),
 }
+SCHEMES_3D = {  # the block's schemes (Gauss degree 4: 11 points per tetrahedron)
+    "Gauss+VCI": dict(integration="vci"),
+    "Gauss+VCI degree 2": dict(integration="vci", intorder=2),
+    "SCNI": dict(integration="scni"),
+    "SCNI α=1e-3": dict(integration="scni", stabilization=1e-3),
+    "DNI": dict(integration="dni"),
+}
 CASES = {  # name: (axisymmetric, support shape, support in spacings, Gauss degree)
     "ring": (True, "box", 3.0, 7),
     "square": (False, "radial", 2.0, 4),
+    "block": (False, "radial", 2.0, 4),
 }
+
+
+def case_schemes(case):
+    return SCHEMES_3D if case == "block" else SCHEMES
 BEAM_SCHEMES = {**SCHEMES, "SCNI α=1": dict(integration="scni", stabilization=1.0)}
 TARGET_RATIO = 0.25
 
@@ -66,27 +85,31 @@ def solid_problem(case, n, scheme):
     from skfem_rkpm import RKBasis
     from skfem_rkpm.mechanics.materials import J2Material, perfect
     from skfem_rkpm.mechanics.problem import SolidProblem
-    from skfem_rkpm.meshes import rectangle
+    from skfem_rkpm.meshes import box, rectangle
 
     axisymmetric, shape, support, intorder = CASES[case]
-    if axisymmetric:
+    if case == "block":
+        mesh, spacing = box(1.0, 1.0, 1.0, n, n, n, kind="tet"), 1.0 / n
+    elif axisymmetric:
         mesh = rectangle(30.0, 20.0, n, max(2 * n // 3, 2), origin=(30.0, 0.0))
         spacing = 30.0 / n
     else:
         mesh, spacing = rectangle(1.0, 1.0, n, n), 1.0 / n
-    keywords = {"intorder": intorder, **SCHEMES[scheme]}
+    keywords = {"intorder": intorder, **case_schemes(case)[scheme]}
     basis = RKBasis(mesh, vector=True, radius=support * spacing, support_shape=shape,
                     axisymmetric=axisymmetric, **keywords)
-    model = "axisymmetric" if axisymmetric else "plane_strain"
+    model = "3d" if case == "block" else "axisymmetric" if axisymmetric else "plane_strain"
     return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), model)
 
 
 def compressed(problem, reduction=0.3, noise=1e-3, seed=0):
     """Coefficients of a homogeneous compression by ``reduction`` (isochoric
-    radial growth) with a random perturbation of ``noise`` x the spacing."""
+    radial growth) with a random perturbation of ``noise`` x the spacing;
+    along the last axis."""
     X = problem.basis.nodes
     stretch = 1.0 - reduction
-    u = np.stack([(1 / np.sqrt(stretch) - 1) * X[0], (stretch - 1) * X[1]])
+    lateral = (1 / np.sqrt(stretch) - 1) * X[:-1]
+    u = np.vstack([lateral, (stretch - 1) * X[-1:]])
     h = np.ptp(X[0]) / (len(np.unique(X[0])) - 1)
     u += noise * h * np.random.default_rng(seed).uniform(-1, 1, u.shape)
     return u.T.ravel()  # linear fields: coefficients = nodal values (close enough)
@@ -130,7 +153,7 @@ def time_iteration(case, n, scheme, repeat):
         material=median_ms(lambda: problem.material.update(
             F, problem.state, entries=problem.entries), repeat),
         assembly=median_ms(assembly, repeat),
-        evaluate=median_ms(lambda: problem.evaluate(d), repeat),
+        evaluate=median_ms(lambda: problem.evaluate(d).K, repeat),
         pairs=int(np.prod(problem.assembler.layout.element_nodes.shape)),
     )
 
@@ -171,20 +194,108 @@ def beam_errors(level, scheme):
                        problem.nu, problem.plane, modulo_rigid=True)
 
 
+def block_field(x):
+    """A quadratic displacement of the unit cube (the body force is constant)."""
+    x, y, z = x[0], x[1], x[2]
+    return 1e-3 * np.stack([0.2 * x - 0.3 * y + 0.3 * x ** 2 - 0.2 * y * z,
+                            -0.2 * x + 0.1 * y ** 2 + 0.25 * x * z,
+                            0.15 * z + 0.2 * x * y - 0.1 * z ** 2])
+
+
+def block_field_gradient(x):
+    x, y, z = x[0], x[1], x[2]
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    return 1e-3 * np.stack([
+        np.stack([0.2 + 0.6 * x, -0.3 * one, -0.2 * y]),
+        np.stack([-0.2 + 0.25 * z, 0.2 * y, 0.25 * x]),
+        np.stack([0.2 * y, 0.2 * x, 0.15 - 0.2 * z + zero])])
+
+
+def block_errors(n, scheme):
+    """Linear elasticity on the block with :func:`block_field` (traction on
+    the whole boundary, constant body force, rigid motions fixed at three
+    corners): relative L² errors of u and ∇u, measured with Gauss degree 6
+    on the tetrahedra (same particles and shape functions)."""
+    from skfem import LinearForm, asm
+    from skfem.helpers import dot
+
+    from skfem_rkpm import Assembler, RKBasis, isotropic_tangent, solve
+    from skfem_rkpm.approximation.nodal_integration import stabilization_matrix
+    from skfem_rkpm.meshes import box
+
+    mesh = box(1.0, 1.0, 1.0, n, n, n, kind="tet")
+    lam, mu = 1.0, 1.0
+    C = isotropic_tangent(lam, mu, 3)
+    basis = RKBasis(mesh, vector=True, support=2.0, **SCHEMES_3D[scheme])
+    K = Assembler(basis).bilinear(C)
+    if basis.stabilization:
+        K = K + basis.stabilization * stabilization_matrix(basis.nodal_quadrature, C, 3)
+
+    def stress(x):
+        G = block_field_gradient(x)
+        eps = 0.5 * (G + np.swapaxes(G, 0, 1))
+        tr = np.einsum("ii...->...", eps)
+        return lam * tr * np.eye(3).reshape(3, 3, *[1] * (G.ndim - 2)) + 2 * mu * eps
+
+    # b = -div σ = -((λ + μ) ∇(div u) + μ ∇²u), both 1e-3 (0.6, 0.2, -0.2)
+    body = -1e-3 * (lam + 2 * mu) * np.array([0.6, 0.2, -0.2])
+
+    @LinearForm
+    def load(v, w):
+        return dot(np.einsum("ij...,j...->i...", stress(np.asarray(w.x)), w.n), v)
+
+    @LinearForm
+    def body_force(v, w):
+        return dot(body.reshape(3, 1, 1) + 0 * w.x, v)
+
+    f = asm(load, basis.boundary()) + asm(body_force, basis)
+    corner = [int(np.argmin(np.linalg.norm(mesh.p - np.array(q)[:, None], axis=0)))
+              for q in ((0, 0, 0), (1, 0, 0), (0, 1, 0))]
+    D = np.r_[3 * corner[0] + np.arange(3), 3 * corner[1] + 1, 3 * corner[1] + 2,
+              3 * corner[2] + 2]
+    d = solve(K, f, basis, D=D, x=block_field(mesh.p).T.ravel())
+    judge = RKBasis(mesh, vector=True, support=2.0, integration="gauss", intorder=6)
+    u = judge.interpolate(d)
+    x = np.asarray(judge.global_coordinates())
+    w = np.asarray(judge.dx)
+    ue, ge = block_field(x), block_field_gradient(x)
+
+    def norm(a):
+        return np.sqrt(np.sum(a ** 2 * w))
+
+    return (norm(np.asarray(u) - ue) / norm(ue),
+            norm(np.asarray(u.grad) - ge) / norm(ge))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[15, 30, 60])
-    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    parser.add_argument("--cases", nargs="+", default=["ring", "square"],
+                        choices=list(CASES))
+    parser.add_argument("--block-sizes", type=int, nargs="+", default=[6, 10, 14],
+                        help="cells across the block (3D case)")
     parser.add_argument("--levels", type=int, nargs="+", default=[2, 4, 8])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--parts", nargs="+", default=["cost", "accuracy"],
-                        choices=["cost", "accuracy"])
+                        choices=["cost", "accuracy", "block_accuracy"])
     args = parser.parse_args()
     print(f"load: {os.getloadavg()[0]:.1f} (1-minute average, 2 cores)\n")
     if "cost" in args.parts:
         cost_table(args)
     if "accuracy" in args.parts:
         accuracy_table(args)
+    if "block_accuracy" in args.parts:
+        block_accuracy_table(args)
+
+
+def block_accuracy_table(args):
+    print("Block (3D tetrahedra, support 2), quadratic field, errors on Gauss degree 6:\n")
+    print("| cells across | scheme | particles | L2 error of u | L2 error of grad u |")
+    print("|---:|---|---:|---:|---:|")
+    for n in args.block_sizes:
+        for s in SCHEMES_3D:
+            e, g = block_errors(n, s)
+            print(f"| {n} | {s} | {(n + 1) ** 3} | {e:.3e} | {g:.3e} |")
 
 
 def cost_table(args):
@@ -195,8 +306,8 @@ def cost_table(args):
           "evaluate ms | setup ms |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for case in args.cases:
-        for n in args.sizes:
-            rows = {s: time_iteration(case, n, s, args.repeat) for s in SCHEMES}
+        for n in (args.block_sizes if case == "block" else args.sizes):
+            rows = {s: time_iteration(case, n, s, args.repeat) for s in case_schemes(case)}
             ref = rows["Gauss+VCI"]["material"] + rows["Gauss+VCI"]["assembly"]
             for s, r in rows.items():
                 both = r["material"] + r["assembly"]

@@ -287,3 +287,20 @@ def test_scni_3d_compression_follows_the_exact_curve(alpha):
     np.testing.assert_allclose(stress[:, 2, 2], exact.cauchy, rtol=1e-8)
     np.testing.assert_allclose(stress[:, 0, 0], 0.0, atol=1e-8 * abs(exact.cauchy))
     np.testing.assert_allclose(problem.state.alpha, exact.alpha, rtol=1e-8)
+
+
+@pytest.mark.parametrize("cells", ["tet", "hex"])
+def test_block_scene_with_scni_follows_the_exact_solution(tmp_path, cells):
+    """The built-in scene ``block_3d`` with ``integration = "scni"`` (and the
+    scene default stabilization): every step's platen force is the exact
+    uniaxial one, as with Gauss+VCI (tests/test_scenes_3d.py), to the Newton
+    tolerance."""
+    from test_scenes_3d import COARSE, TETS, exact_block, run_block
+
+    settings = COARSE + (TETS if cells == "tet" else []) + [
+        'discretization.integration="scni"']
+    _, rows, scene = run_block(tmp_path, "rkpm", settings)
+    assert len(rows) == 5
+    for row in rows:
+        _, _, force = exact_block(scene, float(row["t"]))
+        assert float(row["reaction zmax[2]"]) == pytest.approx(force, rel=1e-10)

@@ -273,9 +273,6 @@ def error_of(text):
      "boundary.zmin.follower: a follower pressure is implemented for 2D models only"),
     (BOX, ("nu = 0.3", 'nu = 0.3\n[output]\npoints = {a = [0.0, 1.0]}'),
      "output.points: point 'a' needs 3 coordinates [X, Y, Z] in a 3D model, not 2"),
-    (BOX, ("nu = 0.3", 'nu = 0.3\n[discretization]\nintegration = "scni"'),
-     "discretization.integration: nodal integration (scni, dni) builds its smoothing "
-     "cells on 2D meshes only; use vci in 3D"),
 ])
 def test_scene_errors_of_dimensions(text, edit, expected):
     assert edit[0] in text

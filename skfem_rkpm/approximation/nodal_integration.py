@@ -5,7 +5,11 @@ One integration point per particle.  Every particle ``L`` owns a conforming
 cell, made of one *piece* per adjacent mesh cell ``c`` (the quadrilateral
 vertex - edge midpoint - centroid of ``c`` - other edge midpoint).  The
 pieces tile every mesh cell exactly, so the cells tile the domain and two
-neighbours share their whole common boundary.
+neighbours share their whole common boundary.  In 3D (tetrahedra,
+hexahedra) a piece is the hexahedron vertex - edge midpoints - face
+centroids - cell centroid, bounded by planar triangles shared exactly by
+its neighbours (:mod:`.median_dual_3d`); everything below holds with
+areas read as volumes and segments as triangles (not axisymmetric).
 
 Stabilized conforming nodal integration (SCNI; Chen, Wu, Yoon & You 2001,
 IJNME 50; finite strain: Chen, Yoon & Wu 2002, IJNME 53) replaces

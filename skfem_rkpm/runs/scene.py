@@ -98,7 +98,7 @@ SCHEMA = {
         "support_shape": Key("str", "radial", choices=("radial", "box"), doc="rkpm: support"),
         "integration": Key("str", "vci", choices=("vci", "vci_symmetric", "gauss", "scni", "dni"),
                            doc="rkpm: integration; scni/dni: one point per particle "
-                               "(2D meshes; see docs/nodal_integration.md)"),
+                               "(mesh vertices; see docs/nodal_integration.md)"),
         "interpolating": Key("bool", False,
                              doc="rkpm: interpolating RK functions, Ψ_I(X_J) = δ_IJ: the "
                                  "coefficients are nodal values (see docs/rk_basis.md)"),

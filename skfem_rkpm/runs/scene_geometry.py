@@ -124,10 +124,6 @@ def check_components(scene, fail):
             fail("output.points", f"point {point!r} needs {dim} coordinates "
                                   f"[{', '.join(n.upper() for n in names)}] in a "
                                   f"{dim}D model, not {len(X)}")
-    if dim == 3 and scene["discretization"]["integration"] in ("scni", "dni"):
-        fail("discretization.integration", "nodal integration (scni, dni) builds its "
-                                           "smoothing cells on 2D meshes only; use vci "
-                                           "in 3D")
 
 
 def _check_component(name, dim, key, fail):

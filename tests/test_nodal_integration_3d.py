@@ -304,3 +304,12 @@ def test_block_scene_with_scni_follows_the_exact_solution(tmp_path, cells):
     for row in rows:
         _, _, force = exact_block(scene, float(row["t"]))
         assert float(row["reaction zmax[2]"]) == pytest.approx(force, rel=1e-10)
+
+
+def test_degenerate_cells_are_named():
+    p = np.array([[0.0, 1.0, 0.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.0, 1.0],
+                  [0.0, 0.0, 0.0, 1.0, 0.0]])  # cell 1 lies in the plane z = 0
+    mesh = MeshTet(p, np.array([[0, 1, 2, 3], [0, 1, 2, 4]]).T)
+    with pytest.raises(ValueError, match=r"mesh cell 1 \(vertices \[0, 1, 2, 4\]\) has zero "
+                                         "volume"):
+        smoothing_cells(mesh)

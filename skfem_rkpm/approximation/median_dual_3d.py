@@ -178,11 +178,9 @@ def median_dual_3d(mesh, npoints=2):
                 face_keys.append(np.vstack([sorted_face, t[v], t[w]]))
                 face_geo.append((p[:, t[v]], midpoint(t[v], t[w]), fcs[f]))
                 face_sign.append(s * orient)
-    width = max(key.shape[0] for key in face_keys)
-    keys = np.hstack([np.vstack([key, np.full((width - key.shape[0], ne), -1)])
-                      for key in face_keys]).T
-    unique_keys, first, inverse = np.unique(keys, axis=0, return_index=True,
-                                            return_inverse=True)
+    # (all faces of a cell type have the same number of vertices)
+    unique_keys, first, inverse = np.unique(np.hstack(face_keys).T, axis=0,
+                                            return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     face_ends = np.stack([np.concatenate([g[j] for g in face_geo], axis=1)[:, first]
                           for j in range(3)], axis=1)  # (3, 3, nface_tri)

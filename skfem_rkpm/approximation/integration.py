@@ -82,12 +82,12 @@ def _pair_monomials(rows, cols, x, nodes, scale, exps):
     return p, dp
 
 
-def _pair_kernel(table, rows, x, nodes, radius, kernel, support):
+def _pair_kernel(table, x, nodes, radius, kernel, support):
     """The kernel φ_I(x_q) of every pair: the one the shape table was built
     with, or computed again for a table without it."""
     if table.kernel is not None:
         return table.kernel
-    phi, _ = _window((x[:, rows] - nodes[:, table.indices]).T, radius[table.indices],
+    phi, _ = _window((x[:, table.rows] - nodes[:, table.indices]).T, radius[table.indices],
                      get_kernel(kernel), support)
     return phi
 
@@ -140,22 +140,17 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     exps = monomial_exponents(dim, order - 1)
     m = len(exps)
     scale = radius
-    rows, cols = table.rows, table.indices
+    cols = table.indices
 
-    phi = _pair_kernel(table, rows, x, nodes, radius, kernel, support)
-    p, dp = _pair_monomials(rows, cols, x, nodes, scale, exps)
+    phi = _pair_kernel(table, x, nodes, radius, kernel, support)
+    p = dp = None  # order 1: the constant alone, not stored at the pairs
+    if m > 1:
+        p, dp = _pair_monomials(table.rows, cols, x, nodes, scale, exps)
     if axisymmetric:
         weights, wb = weights * x[0], wb * xb[0]
-    w = weights[rows]
 
-    # A_I = ∫ φ_I p pᵀ
-    A = np.zeros((nnodes, m * m))
-    ppT = (p[:, :, None] * p[:, None, :]).reshape(-1, m * m)
-    for ab in range(m * m):
-        A[:, ab] = np.bincount(cols, w * phi * ppT[:, ab], minlength=nnodes)
-    A = A.reshape(nnodes, m, m)
-
-    rhs = _constraint_rhs(table, rows, x, weights, boundary_table, xb, wb, normals,
+    A = _moment_integrals(table, phi, p, weights, m)  # A_I = ∫ φ_I p pᵀ
+    rhs = _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals,
                           nodes, scale, exps, dp, p, axisymmetric)
     covered = np.bincount(cols, minlength=nnodes)
     det = np.linalg.det(A)
@@ -176,49 +171,92 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                              + "); use integration='vci'")
         return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
                                                    nodes, radius)
-    xi = _balanced_coefficients(table, rows, phi, p, weights, A, rhs)  # (nnodes, m, dim)
-    a = np.einsum("na,nak->kn", p, xi[cols])  # a_I(x_q) at the pairs
-    nq = table.npoints
-    shepard = phi / np.bincount(rows, phi, minlength=nq)[rows]
-    mean = np.stack([np.bincount(rows, shepard * a[k], minlength=nq)
-                     for k in range(dim)])  # ā(x_q) = Σ_J S_J a_J
-    return table.grads + phi[None, :] * (a - mean[:, rows])
+    H = _weighted_kernel_matrix(table, phi, p)
+    Phi = _pair_matrix(table, phi) @ np.ones(nnodes)  # Φ_q = Σ_K φ_K(x_q)
+    xi = _balanced_coefficients(H, Phi, weights, A, rhs)  # (nnodes, m, dim)
+    counts = np.diff(table.indptr)
+    # ā(x_q) = Σ_J S_J a_J = (H ξ)_q / Φ_q, with S_J = φ_J / Φ the Shepard functions
+    mean = (H @ xi.reshape(nnodes * m, dim)) / Phi[:, None]  # (nq, dim)
+    if m == 1:  # a_I = ξ_I
+        correction = np.take(np.ascontiguousarray(xi[:, 0, :].T), cols, axis=1)
+    else:  # a_I(x_q) = ξ_I · p(x_q) at the pairs
+        correction = np.einsum("na,nak->kn", p, xi[cols])
+    for k in range(dim):  # one row at a time: np.repeat of a 2D array is slow
+        correction[k] -= np.repeat(mean[:, k], counts)
+    correction *= phi
+    correction += table.grads
+    return correction
 
 
-def _constraint_rhs(table, rows, x, weights, boundary_table, xb, wb, normals, nodes,
+def _moment_integrals(table, phi, p, weights, m):
+    """``A_I = ∫̂ φ_I p pᵀ`` (nnodes, m, m), ``p ≡ 1`` if ``p`` is None (m = 1)."""
+    A = np.empty((table.nnodes, m, m))
+    for a in range(m):
+        for b in range(a, m):
+            data = phi if b == 0 else phi * p[:, a] * p[:, b]
+            A[:, a, b] = A[:, b, a] = _integrate_pairs(table, data, weights)
+    return A
+
+
+def _integrate_pairs(table, data, weights):
+    """``Σ_q w_q f_I(x_q)`` for every particle ``I``, ``f`` given at the pairs:
+    one pass over the pairs in table order (the transposed CSR product, the
+    same sums in the same order as ``np.bincount(cols, w[rows] * data)``)."""
+    return _pair_matrix(table, data).T @ weights
+
+
+def _pair_matrix(table, data):
+    """The sparse matrix (points × particles) of ``data`` given at the pairs."""
+    return sp.csr_matrix((data, table.indices, table.indptr),
+                         shape=(table.npoints, table.nnodes))
+
+
+def _weighted_kernel_matrix(table, phi, p):
+    """``H[q, (J, β)] = φ_J(x_q) p_Jβ(x_q)`` in CSR, shape (nq, nnodes m): row
+    ``q`` holds the ``m`` unknowns of each pair of ``q``, in order
+    (``p ≡ 1``, m = 1, if ``p`` is None: the kernel table itself)."""
+    if p is None:
+        return _pair_matrix(table, phi)
+    m = p.shape[1]
+    unknown = (table.indices[:, None] * m + np.arange(m)[None, :]).ravel()
+    return sp.csr_matrix(((phi[:, None] * p).ravel(), unknown, table.indptr * m),
+                         shape=(table.npoints, table.nnodes * m))
+
+
+def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes,
                     scale, exps, dp, p, axisymmetric):
     """``r_I,k,α = ∫_Γ Ψ_I p_α n_k - ∫_Ω Ψ_I ∂_k p_α - ∫_Ω ∂_k Ψ_I p_α``, shape
     (nnodes, dim, m): what the corrections must integrate to.
 
-    ``weights`` and ``wb`` are already multiplied by the radius if
-    ``axisymmetric`` (then ``-∫ Ψ_I p_α dR dZ`` is added to the radial row).
+    ``p`` and ``dp`` are the monomials and their gradients at the pairs (None
+    for order 1: the constant alone, ``∂p = 0``).  ``weights`` and ``wb`` are
+    already multiplied by the radius if ``axisymmetric`` (then ``-∫ Ψ_I p_α dR
+    dZ`` is added to the radial row).
     """
     dim, nnodes = nodes.shape
     m = len(exps)
-    cols = table.indices
-    w = weights[rows]
-    rhs = np.zeros((nnodes, dim, m))
+    rhs = np.empty((nnodes, dim, m))
     brow, bcol = boundary_table.rows, boundary_table.indices
-    pb, _ = _pair_monomials(brow, bcol, xb, nodes, scale, exps)
+    pb = (_pair_monomials(brow, bcol, xb, nodes, scale, exps)[0] if m > 1
+          else np.ones((len(bcol), 1)))
     for k in range(dim):
         for a in range(m):
-            integrand = table.grads[k] * p[:, a]
+            integrand = table.grads[k] if a == 0 else table.grads[k] * p[:, a]
             if exps[a][k] > 0:  # ∂_k p_α = 0 otherwise
-                integrand += table.values * dp[k, :, a]
+                integrand = integrand + table.values * dp[k, :, a]
             rhs[:, k, a] = (
                 np.bincount(bcol, wb[brow] * boundary_table.values
                             * pb[:, a] * normals[k, brow], minlength=nnodes)
-                - np.bincount(cols, w * integrand, minlength=nnodes)
+                - _integrate_pairs(table, integrand, weights)
             )
     if axisymmetric:  # ∂R/∂R = 1: the extra term -∫ Ψ_I p_α dR dZ
-        w_plain = (weights / x[0])[rows]
         for a in range(m):
-            rhs[:, 0, a] -= np.bincount(cols, w_plain * table.values * p[:, a],
-                                        minlength=nnodes)
+            rhs[:, 0, a] -= _integrate_pairs(
+                table, table.values if a == 0 else table.values * p[:, a], weights / x[0])
     return rhs
 
 
-def _balanced_coefficients(table, rows, phi, p, weights, A, rhs):
+def _balanced_coefficients(H, Phi, weights, A, rhs):
     """Coefficients ξ_I of the balanced correction (one sparse SPD solve).
 
     The correction ``c_I = φ_I (a_I - Σ_J S_J a_J)``, ``a_I = ξ_I · p_I`` and
@@ -226,37 +264,35 @@ def _balanced_coefficients(table, rows, phi, p, weights, A, rhs):
     point.  The constraints of all particles become one symmetric positive
     semidefinite system ``M ξ = r``,
 
-        M = blockdiag(∫̂ φ_I p_I p_Iᵀ) - Hᵀ diag(w_q / Σ_K φ_K(x_q)) H,
-        H[q, (J, β)] = φ_J(x_q) p_Jβ(x_q),
+        M = blockdiag(∫̂ φ_I p_I p_Iᵀ) - Hᵀ diag(w_q / Φ_q) H,
+        H[q, (J, β)] = φ_J(x_q) p_Jβ(x_q),   Φ_q = Σ_K φ_K(x_q),
 
     whose null space holds the ``ξ`` with ``a_I`` one polynomial of degree
     ``n - 1`` on each connected body (they give ``c_I = 0``).  The right-hand
     side is orthogonal to it: summing the constraints over ``I`` gives the
-    divergence theorem for that polynomial, exact for the quadrature.  So
-    ``ξ`` of one particle per body is set to zero and its constraints,
-    implied by the others, are dropped: the rest of ``M`` is positive
-    definite, and is solved by :func:`_pinned_spd_solve`.
+    divergence theorem for that polynomial, exact for the quadrature.
+
+    For order 1 (``m = 1``) ``M`` is a weighted graph Laplacian (zero row
+    sums, off-diagonal entries ``-∫̂ φ_I φ_J / Φ ≤ 0``): it is solved as it
+    is, semidefinite, by :func:`_laplacian_solve`.  Otherwise ``ξ`` of one
+    particle per body is set to zero and its constraints, implied by the
+    others, are dropped: the rest of ``M`` is positive definite, and is
+    solved by :func:`_pinned_spd_solve`.
     """
-    cols = table.indices
     nnodes, m, _ = A.shape
     dim = rhs.shape[1]
-    nq = table.npoints
     n = nnodes * m
-    # H in CSR directly: row q holds the m unknowns of each pair of q, in order
-    unknown = (cols[:, None] * m + np.arange(m)[None, :]).ravel()
-    H = sp.csr_matrix(((phi[:, None] * p).ravel(), unknown, table.indptr * m),
-                      shape=(nq, n))
-    Phi = np.bincount(rows, phi, minlength=nq)
-    WH = sp.csr_matrix((H.data * np.repeat(weights / Phi, m * np.diff(table.indptr)),
-                        unknown, H.indptr), shape=H.shape)
-    D = sp.bsr_matrix((A, np.arange(nnodes), np.arange(nnodes + 1)),
-                      shape=(n, n)).tocsr()
-    M = (D - WH.T.tocsr() @ H).tocsr()
-
-    _, body = connected_components(M, directed=False)
+    WH = sp.csr_matrix((H.data * np.repeat(weights / Phi, np.diff(H.indptr)),
+                        H.indices, H.indptr), shape=H.shape)
+    M = WH.T @ H
+    M = (sp.bsr_matrix((A, np.arange(nnodes), np.arange(nnodes + 1)), shape=(n, n))
+         - M).tocsr()
+    nbodies, body = connected_components(M, directed=False)
+    b = rhs.transpose(0, 2, 1).reshape(n, dim)
+    if m == 1:
+        return _laplacian_solve(M, b, body, nbodies).reshape(nnodes, m, dim)
     _, pinned = np.unique(body[::m], return_index=True)  # first particle of each body
     block = np.arange(n).reshape(nnodes, m)
-    b = rhs.transpose(0, 2, 1).reshape(n, dim)
     return _pinned_spd_solve(M, b, block[pinned].ravel()).reshape(nnodes, m, dim)
 
 
@@ -270,6 +306,83 @@ RTOL = 1e-13
 #: 0.9 s) and slower above (16 against 9 s at 1.1e5), where its fill grows
 #: faster than the particles
 DIRECT_MAX_UNKNOWNS = 20_000
+
+
+def _laplacian_solve(M, b, body, nbodies, rtol=RTOL, maxiter=None):
+    """Solve ``M x = b`` for a weighted graph Laplacian ``M``: symmetric,
+    positive semidefinite, its null space the vectors constant on each
+    connected body (``body``, labels ``0 .. nbodies - 1``).
+
+    Conjugate gradients preconditioned by the diagonal (Jacobi), one
+    right-hand side after the other, on the semidefinite system itself: the
+    part of ``b`` in the null space (zero up to round-off for a consistent
+    system) is removed first, so that the iteration stays in the range of
+    ``M``, and the solution is returned with zero mean on each body (any
+    other constant per body solves it as well).  Each iteration is one
+    product with ``M``: time and memory grow like the nonzeros of ``M``
+    times the iteration count (about 230 per right-hand side on the 17k
+    rectangle of docs/performance.md, "Building an RK basis"), and no fill
+    is formed.  The iteration stops at the relative residual ``rtol``,
+    checked on ``b - M x`` itself.
+
+    Raises
+    ------
+    RuntimeError
+        If ``rtol`` is not reached in ``maxiter`` iterations (default
+        ``max(1000, n)``; ``M`` is then not a Laplacian with a positive
+        diagonal).
+    """
+    n = M.shape[0]
+    size = np.bincount(body, minlength=nbodies)
+
+    def centred(v):  # the part of v orthogonal to the null space
+        return v - (np.bincount(body, v, minlength=nbodies) / size)[body]
+
+    diagonal = M.diagonal()
+    if not np.all(diagonal > 0):
+        I = int(np.flatnonzero(~(diagonal > 0))[0])
+        raise RuntimeError(f"VCI: the correction system has a diagonal entry "
+                           f"{diagonal[I]:g} <= 0 at unknown {I}")
+    inverse_diagonal = 1.0 / diagonal
+    maxiter = max(1000, n) if maxiter is None else maxiter
+    x = np.zeros(b.shape)
+    for k in range(b.shape[1]):
+        rhs = centred(b[:, k])
+        target = rtol * np.linalg.norm(rhs)
+        if target == 0.0:
+            continue
+        x[:, k] = _jacobi_cg(M, rhs, inverse_diagonal, target, maxiter)
+        residual = np.linalg.norm(rhs - M @ x[:, k])
+        # the true residual may exceed the recursive one CG stops on by a little
+        if not residual <= 10 * target:
+            raise RuntimeError(
+                "VCI: conjugate gradients did not reach a relative residual of "
+                f"{rtol:g} on the correction system ({n} unknowns, {maxiter} "
+                f"iterations; reached {residual / target * rtol:.2g})")
+        x[:, k] = centred(x[:, k])
+    return x
+
+
+def _jacobi_cg(M, b, inverse_diagonal, target, maxiter):
+    """Conjugate gradients for ``M x = b`` from ``x = 0``, preconditioned by
+    ``diag(M)``, until the recursive residual's norm is at most ``target``."""
+    x = np.zeros_like(b)
+    r = b.copy()
+    z = inverse_diagonal * r
+    direction = z.copy()
+    rz = r @ z
+    for _ in range(maxiter):
+        q = M @ direction
+        step = rz / (direction @ q)
+        x += step * direction
+        r -= step * q
+        if np.linalg.norm(r) <= target:
+            break
+        np.multiply(inverse_diagonal, r, out=z)
+        rz, previous = r @ z, rz
+        direction *= rz / previous
+        direction += z
+    return x
 
 
 def _pinned_spd_solve(M, b, pinned, rtol=RTOL):

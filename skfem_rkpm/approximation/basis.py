@@ -88,13 +88,17 @@ def _padded(table, nelems, nqp, grads, cells=None):
     element_nodes = np.repeat(indices[indptr[:-1]][None, :], nloc, axis=0)
     element_nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
                   np.repeat(np.arange(nelems), count)] = indices
-    cell, qp = np.divmod(table.rows, nqp)
+    # pair (slot, point q = cell nqp + qp) goes to entry slot nq + q of the
+    # flattened (nloc, nelems, nqp) arrays
+    npoints = nelems * nqp
+    flat = slot * npoints + table.rows
     values = np.zeros((nloc, nelems, nqp))
-    values[slot, cell, qp] = table.values
+    values.reshape(-1)[flat] = table.values
     g = None
     if grads is not None:
         g = np.zeros((grads.shape[0], nloc, nelems, nqp))
-        g[:, slot, cell, qp] = grads
+        for k in range(grads.shape[0]):
+            g[k].reshape(-1)[flat] = grads[k]
     return element_nodes, values, g
 
 

@@ -149,8 +149,11 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     if axisymmetric:
         weights, wb = weights * x[0], wb * xb[0]
 
-    A = _moment_integrals(table, phi, p, weights, m)  # A_I = ∫ φ_I p pᵀ
-    rhs = _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals,
+    # φ_I(x_q) as a sparse (points × particles) matrix; its index arrays
+    # (converted once) serve every other quantity given at the pairs
+    kernel_matrix = _pair_matrix(table, phi)
+    A = _moment_integrals(kernel_matrix, p, weights, m)  # A_I = ∫ φ_I p pᵀ
+    rhs = _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, normals,
                           nodes, scale, exps, dp, p, axisymmetric)
     covered = np.bincount(cols, minlength=nnodes)
     det = np.linalg.det(A)
@@ -171,8 +174,8 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                              + "); use integration='vci'")
         return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
                                                    nodes, radius)
-    H = _weighted_kernel_matrix(table, phi, p)
-    Phi = _pair_matrix(table, phi) @ np.ones(nnodes)  # Φ_q = Σ_K φ_K(x_q)
+    H = _weighted_kernel_matrix(kernel_matrix, p)
+    Phi = kernel_matrix @ np.ones(nnodes)  # Φ_q = Σ_K φ_K(x_q)
     xi = _balanced_coefficients(H, Phi, weights, A, rhs)  # (nnodes, m, dim)
     counts = np.diff(table.indptr)
     # ā(x_q) = Σ_J S_J a_J = (H ξ)_q / Φ_q, with S_J = φ_J / Φ the Shepard functions
@@ -188,21 +191,24 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     return correction
 
 
-def _moment_integrals(table, phi, p, weights, m):
+def _moment_integrals(kernel_matrix, p, weights, m):
     """``A_I = ∫̂ φ_I p pᵀ`` (nnodes, m, m), ``p ≡ 1`` if ``p`` is None (m = 1)."""
-    A = np.empty((table.nnodes, m, m))
+    phi = kernel_matrix.data
+    A = np.empty((kernel_matrix.shape[1], m, m))
     for a in range(m):
         for b in range(a, m):
             data = phi if b == 0 else phi * p[:, a] * p[:, b]
-            A[:, a, b] = A[:, b, a] = _integrate_pairs(table, data, weights)
+            A[:, a, b] = A[:, b, a] = _integrate_pairs(kernel_matrix, data, weights)
     return A
 
 
-def _integrate_pairs(table, data, weights):
-    """``Σ_q w_q f_I(x_q)`` for every particle ``I``, ``f`` given at the pairs:
-    one pass over the pairs in table order (the transposed CSR product, the
-    same sums in the same order as ``np.bincount(cols, w[rows] * data)``)."""
-    return _pair_matrix(table, data).T @ weights
+def _integrate_pairs(pattern, data, weights):
+    """``Σ_q w_q f_I(x_q)`` for every particle ``I``, ``f`` given at the pairs
+    (in the order of ``pattern``, a :func:`_pair_matrix`): one pass over the
+    pairs, the transposed CSR product (the same sums in the same order as
+    ``np.bincount(cols, w[rows] * data)``)."""
+    return sp.csr_matrix((data, pattern.indices, pattern.indptr),
+                         shape=pattern.shape).T @ weights
 
 
 def _pair_matrix(table, data):
@@ -211,24 +217,28 @@ def _pair_matrix(table, data):
                          shape=(table.npoints, table.nnodes))
 
 
-def _weighted_kernel_matrix(table, phi, p):
+def _weighted_kernel_matrix(kernel_matrix, p):
     """``H[q, (J, β)] = φ_J(x_q) p_Jβ(x_q)`` in CSR, shape (nq, nnodes m): row
     ``q`` holds the ``m`` unknowns of each pair of ``q``, in order
-    (``p ≡ 1``, m = 1, if ``p`` is None: the kernel table itself)."""
+    (``p ≡ 1``, m = 1, if ``p`` is None: the kernel matrix itself)."""
     if p is None:
-        return _pair_matrix(table, phi)
+        return kernel_matrix
     m = p.shape[1]
-    unknown = (table.indices[:, None] * m + np.arange(m)[None, :]).ravel()
-    return sp.csr_matrix(((phi[:, None] * p).ravel(), unknown, table.indptr * m),
-                         shape=(table.npoints, table.nnodes * m))
+    nq, nnodes = kernel_matrix.shape
+    unknown = (kernel_matrix.indices[:, None].astype(np.int64) * m
+               + np.arange(m)[None, :]).ravel()
+    return sp.csr_matrix(((kernel_matrix.data[:, None] * p).ravel(), unknown,
+                          kernel_matrix.indptr.astype(np.int64) * m),
+                         shape=(nq, nnodes * m))
 
 
-def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes,
+def _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, normals, nodes,
                     scale, exps, dp, p, axisymmetric):
     """``r_I,k,α = ∫_Γ Ψ_I p_α n_k - ∫_Ω Ψ_I ∂_k p_α - ∫_Ω ∂_k Ψ_I p_α``, shape
     (nnodes, dim, m): what the corrections must integrate to.
 
-    ``p`` and ``dp`` are the monomials and their gradients at the pairs (None
+    ``kernel_matrix`` (:func:`_pair_matrix`) gives the pattern of the pairs of
+    ``table``; ``p`` and ``dp`` are the monomials and their gradients at the pairs (None
     for order 1: the constant alone, ``∂p = 0``).  ``weights`` and ``wb`` are
     already multiplied by the radius if ``axisymmetric`` (then ``-∫ Ψ_I p_α dR
     dZ`` is added to the radial row).
@@ -247,12 +257,12 @@ def _constraint_rhs(table, x, weights, boundary_table, xb, wb, normals, nodes,
             rhs[:, k, a] = (
                 np.bincount(bcol, wb[brow] * boundary_table.values
                             * pb[:, a] * normals[k, brow], minlength=nnodes)
-                - _integrate_pairs(table, integrand, weights)
+                - _integrate_pairs(kernel_matrix, integrand, weights)
             )
     if axisymmetric:  # ∂R/∂R = 1: the extra term -∫ Ψ_I p_α dR dZ
         for a in range(m):
             rhs[:, 0, a] -= _integrate_pairs(
-                table, table.values if a == 0 else table.values * p[:, a], weights / x[0])
+                kernel_matrix, table.values if a == 0 else table.values * p[:, a], weights / x[0])
     return rhs
 
 

@@ -125,10 +125,7 @@ class ShapeTable:
     @property
     def rows(self):
         """Point index of each pair, shape (npairs,)."""
-        # a count of the points that start at each pair, summed up (a
-        # fraction of the time of np.repeat over the point numbers)
-        npairs = len(self.indices)
-        return np.cumsum(np.bincount(self.indptr[1:-1], minlength=npairs)[:npairs])
+        return np.repeat(np.arange(self.npoints), np.diff(self.indptr))
 
     def _csr(self, data):
         return sp.csr_matrix(

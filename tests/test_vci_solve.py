@@ -1,5 +1,5 @@
 """The order-1 VCI balancing system is a weighted graph Laplacian, solved
-semidefinite by Jacobi-preconditioned conjugate gradients
+semidefinite by conjugate gradients with a two-level preconditioner
 (``integration._laplacian_solve``): the same corrections as the pinned
 factorization, on one body and on two."""
 
@@ -39,7 +39,9 @@ def test_laplacian_solve_matches_the_pseudoinverse():
     body = np.repeat([0, 1], sizes)
     rng = np.random.default_rng(1)
     b = rng.standard_normal((M.shape[0], 2))
-    x = integration._laplacian_solve(M, b, body, 2)
+    # particles scattered at random: aggregates of any shape still precondition
+    nodes = rng.random((2, M.shape[0]))
+    x = integration._laplacian_solve(M, b, body, 2, nodes, np.full(M.shape[0], 0.2))
     expected = np.linalg.pinv(M.toarray()) @ b
     # rtol 1e-13 on the residual, condition number of M on its range ~1e2
     np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
@@ -51,13 +53,15 @@ def test_laplacian_solve_reports_no_convergence():
     M = _random_laplacian([60])
     b = np.random.default_rng(2).standard_normal((60, 1))
     with pytest.raises(RuntimeError, match="did not reach a relative residual"):
-        integration._laplacian_solve(M, b, np.zeros(60, dtype=int), 1, maxiter=2)
+        integration._laplacian_solve(M, b, np.zeros(60, dtype=int), 1,
+                                     np.linspace(0, 1, 120).reshape(2, 60),
+                                     np.full(60, 0.01), maxiter=2)
 
 
 @pytest.fixture
 def pinned_factorization(monkeypatch):
     """Route the order-1 system through the pinned LU factorization instead."""
-    def solve(M, b, body, nbodies, rtol=integration.RTOL):
+    def solve(M, b, body, nbodies, nodes, radius, rtol=integration.RTOL):
         _, pinned = np.unique(body, return_index=True)
         monkeypatch.setattr(integration, "DIRECT_MAX_UNKNOWNS", M.shape[0])
         return integration._pinned_spd_solve(M, b, pinned, rtol)
@@ -110,6 +114,25 @@ def test_patch_test_on_two_separate_bodies():
                          D=basis.get_dofs(), x=1.0 + g @ basis.nodes)
     # a solve with condition numbers of 1e3-1e4 at round-off
     assert np.abs(basis.interpolate(d).grad - g[:, None, None]).max() < 1e-10
+
+
+def test_two_level_preconditioner_is_symmetric_positive_definite_on_the_range():
+    """The preconditioner as a matrix (applied to the unit vectors), on two
+    bodies: symmetric to round-off, positive on vectors of zero mean per body."""
+    sizes = [30, 20]
+    M = _random_laplacian(sizes, seed=3)
+    n = M.shape[0]
+    body = np.repeat([0, 1], sizes)
+    nodes = np.random.default_rng(4).random((2, n))
+    apply = integration._two_level_preconditioner(M, body, 2, nodes, 0.3)
+    P = np.stack([apply(e) for e in np.eye(n)], axis=1)
+    assert abs(P - P.T).max() < 1e-12 * abs(P).max()
+    centred = np.eye(n) - np.stack([np.where(body == body[i], 1 / np.array(sizes)[body],
+                                             0.0) for i in range(n)])
+    eigenvalues = np.linalg.eigvalsh(centred.T @ P @ centred)
+    # the range has n - 2 dimensions: n - 2 positive eigenvalues
+    assert np.sum(eigenvalues > 1e-10 * eigenvalues.max()) == n - 2
+    assert eigenvalues.min() > -1e-12 * eigenvalues.max()
 
 
 def test_rows_of_points_without_pairs():

@@ -176,7 +176,7 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                                                    nodes, radius)
     H = _weighted_kernel_matrix(kernel_matrix, p)
     Phi = kernel_matrix @ np.ones(nnodes)  # Φ_q = Σ_K φ_K(x_q)
-    xi = _balanced_coefficients(H, Phi, weights, A, rhs)  # (nnodes, m, dim)
+    xi = _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius)  # (nnodes, m, dim)
     counts = np.diff(table.indptr)
     # ā(x_q) = Σ_J S_J a_J = (H ξ)_q / Φ_q, with S_J = φ_J / Φ the Shepard functions
     mean = (H @ xi.reshape(nnodes * m, dim)) / Phi[:, None]  # (nq, dim)
@@ -266,7 +266,7 @@ def _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, no
     return rhs
 
 
-def _balanced_coefficients(H, Phi, weights, A, rhs):
+def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     """Coefficients ξ_I of the balanced correction (one sparse SPD solve).
 
     The correction ``c_I = φ_I (a_I - Σ_J S_J a_J)``, ``a_I = ξ_I · p_I`` and
@@ -300,7 +300,7 @@ def _balanced_coefficients(H, Phi, weights, A, rhs):
     nbodies, body = connected_components(M, directed=False)
     b = rhs.transpose(0, 2, 1).reshape(n, dim)
     if m == 1:
-        return _laplacian_solve(M, b, body, nbodies).reshape(nnodes, m, dim)
+        return _laplacian_solve(M, b, body, nbodies, nodes, radius).reshape(nnodes, m, dim)
     _, pinned = np.unique(body[::m], return_index=True)  # first particle of each body
     block = np.arange(n).reshape(nnodes, m)
     return _pinned_spd_solve(M, b, block[pinned].ravel()).reshape(nnodes, m, dim)
@@ -318,29 +318,37 @@ RTOL = 1e-13
 DIRECT_MAX_UNKNOWNS = 20_000
 
 
-def _laplacian_solve(M, b, body, nbodies, rtol=RTOL, maxiter=None):
-    """Solve ``M x = b`` for a weighted graph Laplacian ``M``: symmetric,
-    positive semidefinite, its null space the vectors constant on each
-    connected body (``body``, labels ``0 .. nbodies - 1``).
+#: side of the grid cells whose particles (of one body) form one aggregate of
+#: the coarse space of :func:`_laplacian_solve`, in median support radii:
+#: measured on the 17k rectangle of docs/performance.md ("Building an RK
+#: basis"), 1, 1.5 and 2 radii take 32-62, 40 and 48 iterations per
+#: right-hand side (Jacobi alone 210-230)
+AGGREGATE_SIDE = 1.5
 
-    Conjugate gradients preconditioned by the diagonal (Jacobi), one
-    right-hand side after the other, on the semidefinite system itself: the
-    part of ``b`` in the null space (zero up to round-off for a consistent
-    system) is removed first, so that the iteration stays in the range of
-    ``M``, and the solution is returned with zero mean on each body (any
-    other constant per body solves it as well).  Each iteration is one
-    product with ``M``: time and memory grow like the nonzeros of ``M``
-    times the iteration count (about 230 per right-hand side on the 17k
-    rectangle of docs/performance.md, "Building an RK basis"), and no fill
-    is formed.  The iteration stops at the relative residual ``rtol``,
-    checked on ``b - M x`` itself.
+
+def _laplacian_solve(M, b, body, nbodies, nodes, radius, rtol=RTOL, maxiter=1000):
+    """Solve ``M x = b`` for a weighted graph Laplacian ``M`` over the
+    particles: symmetric, positive semidefinite, its null space the vectors
+    constant on each connected body (``body``, labels ``0 .. nbodies - 1``).
+
+    Conjugate gradients on the semidefinite system itself, one right-hand
+    side after the other, preconditioned by :func:`_two_level_preconditioner`
+    (the diagonal plus a coarse correction on aggregates of nearby
+    particles): the part of ``b`` in the null space (zero up to round-off
+    for a consistent system) is removed first, so that the iteration stays in
+    the range of ``M``, and the solution is returned with zero mean on each
+    body (any other constant per body solves it as well).  Each iteration is
+    one product with ``M`` and one solve with the coarse matrix: time and
+    memory grow like the nonzeros of ``M`` (about 40 iterations per
+    right-hand side on the 17k rectangle of docs/performance.md, "Building an
+    RK basis"), and no fill is formed but the coarse one.  The iteration
+    stops at the relative residual ``rtol``, checked on ``b - M x`` itself.
 
     Raises
     ------
     RuntimeError
-        If ``rtol`` is not reached in ``maxiter`` iterations (default
-        ``max(1000, n)``; ``M`` is then not a Laplacian with a positive
-        diagonal).
+        If ``rtol`` is not reached in ``maxiter`` iterations (``M`` is then
+        not a Laplacian with a positive diagonal).
     """
     n = M.shape[0]
     size = np.bincount(body, minlength=nbodies)
@@ -348,20 +356,15 @@ def _laplacian_solve(M, b, body, nbodies, rtol=RTOL, maxiter=None):
     def centred(v):  # the part of v orthogonal to the null space
         return v - (np.bincount(body, v, minlength=nbodies) / size)[body]
 
-    diagonal = M.diagonal()
-    if not np.all(diagonal > 0):
-        I = int(np.flatnonzero(~(diagonal > 0))[0])
-        raise RuntimeError(f"VCI: the correction system has a diagonal entry "
-                           f"{diagonal[I]:g} <= 0 at unknown {I}")
-    inverse_diagonal = 1.0 / diagonal
-    maxiter = max(1000, n) if maxiter is None else maxiter
+    precondition = _two_level_preconditioner(M, body, nbodies, nodes,
+                                             AGGREGATE_SIDE * np.median(radius))
     x = np.zeros(b.shape)
     for k in range(b.shape[1]):
         rhs = centred(b[:, k])
         target = rtol * np.linalg.norm(rhs)
         if target == 0.0:
             continue
-        x[:, k] = _jacobi_cg(M, rhs, inverse_diagonal, target, maxiter)
+        x[:, k] = _preconditioned_cg(M, rhs, precondition, target, maxiter)
         residual = np.linalg.norm(rhs - M @ x[:, k])
         # the true residual may exceed the recursive one CG stops on by a little
         if not residual <= 10 * target:
@@ -373,12 +376,60 @@ def _laplacian_solve(M, b, body, nbodies, rtol=RTOL, maxiter=None):
     return x
 
 
-def _jacobi_cg(M, b, inverse_diagonal, target, maxiter):
+def _two_level_preconditioner(M, body, nbodies, nodes, side):
+    """``r -> D⁻¹ r + Z E⁺ Zᵀ r`` for the Laplacian ``M``: its diagonal ``D``
+    plus a coarse solve, ``Z`` the piecewise constant functions on
+    aggregates (the particles of one body in one cell of a grid of the given
+    ``side``), ``E = Zᵀ M Z`` the aggregates' Laplacian, factored (SuperLU)
+    with one aggregate per body pinned (``E`` is singular like ``M``; ``E⁺``
+    is then a symmetric generalized inverse, so the preconditioner stays
+    symmetric positive definite on the range of ``M``).
+
+    Raises
+    ------
+    RuntimeError
+        If a diagonal entry of ``M`` is not positive.
+    """
+    diagonal = M.diagonal()
+    if not np.all(diagonal > 0):
+        I = int(np.flatnonzero(~(diagonal > 0))[0])
+        raise RuntimeError(f"VCI: the correction system has a diagonal entry "
+                           f"{diagonal[I]:g} <= 0 at unknown {I}")
+    inverse_diagonal = 1.0 / diagonal
+    n = M.shape[0]
+    cell = np.floor((nodes - nodes.min(axis=1, keepdims=True)) / side).astype(np.int64)
+    key = body.astype(np.int64)
+    for k in range(nodes.shape[0]):
+        key = key * (cell[k].max() + 1) + cell[k]
+    _, aggregate = np.unique(key, return_inverse=True)
+    aggregate = aggregate.ravel()
+    naggregates = int(aggregate.max()) + 1
+    Z = sp.csr_matrix((np.ones(n), aggregate, np.arange(n + 1)), shape=(n, naggregates))
+    E = (Z.T @ (M @ Z)).tocsc()
+    aggregate_body = np.zeros(naggregates, dtype=np.int64)
+    aggregate_body[aggregate] = body
+    free = np.ones(naggregates, dtype=bool)
+    free[np.unique(aggregate_body, return_index=True)[1]] = False
+    coarse = splu(E[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A") if free.any() \
+        else None
+
+    def precondition(r):
+        z = inverse_diagonal * r
+        if coarse is not None:
+            y = np.zeros(naggregates)
+            y[free] = coarse.solve(np.bincount(aggregate, r, minlength=naggregates)[free])
+            z += y[aggregate]
+        return z
+    return precondition
+
+
+def _preconditioned_cg(M, b, precondition, target, maxiter):
     """Conjugate gradients for ``M x = b`` from ``x = 0``, preconditioned by
-    ``diag(M)``, until the recursive residual's norm is at most ``target``."""
+    ``precondition`` (``r -> P⁻¹ r``), until the recursive residual's norm
+    is at most ``target``."""
     x = np.zeros_like(b)
     r = b.copy()
-    z = inverse_diagonal * r
+    z = precondition(r)
     direction = z.copy()
     rz = r @ z
     for _ in range(maxiter):
@@ -388,7 +439,7 @@ def _jacobi_cg(M, b, inverse_diagonal, target, maxiter):
         r -= step * q
         if np.linalg.norm(r) <= target:
             break
-        np.multiply(inverse_diagonal, r, out=z)
+        z = precondition(r)
         rz, previous = r @ z, rz
         direction *= rz / previous
         direction += z

@@ -6,7 +6,7 @@ factorization, on one body and on two."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from skfem import LinearForm, MeshQuad
+from skfem import LinearForm, MeshHex, MeshQuad
 from skfem.helpers import dot
 from skfem.models import laplace
 
@@ -58,48 +58,49 @@ def test_laplacian_solve_reports_no_convergence():
                                      np.full(60, 0.01), maxiter=2)
 
 
-@pytest.fixture
-def pinned_factorization(monkeypatch):
-    """Route the order-1 system through the pinned LU factorization instead."""
-    def solve(M, b, body, nbodies, nodes, radius, rtol=integration.RTOL):
-        _, pinned = np.unique(body, return_index=True)
-        monkeypatch.setattr(integration, "DIRECT_MAX_UNKNOWNS", M.shape[0])
-        return integration._pinned_spd_solve(M, b, pinned, rtol)
-    return solve
-
-
-@pytest.mark.parametrize("axisymmetric", [False, True])
-def test_corrections_match_the_pinned_factorization(monkeypatch, pinned_factorization,
-                                                    axisymmetric):
-    """Two bodies, distorted cells: the corrected gradients of both solves
-    agree to 1e-9 of the correction (M's condition number here is ~1e3, both
-    solves reach a relative residual of 1e-13 or round-off), and sum to zero
-    at every point."""
+def _two_bodies():
     left = rectangle(1.0, 1.0, 9, 9, kind="quad", perturb=0.2, seed=5)
     right = MeshQuad.init_tensor(np.linspace(2, 3, 8), np.linspace(0, 1, 6))
-    mesh = left + right
-    if axisymmetric:
-        mesh = mesh.translated([0.5, 0.0])
+    return left + right
 
-    def build():
-        return RKBasis(mesh, vector=True, support=2.0, intorder=3,
-                       axisymmetric=axisymmetric)
 
-    iterative = build()
-    monkeypatch.setattr(integration, "_laplacian_solve", pinned_factorization)
-    direct = build()
+@pytest.mark.parametrize("case", ["two bodies", "axisymmetric", "3D"])
+def test_corrections_match_the_pinned_factorization(monkeypatch, case):
+    """Conjugate gradients on the Laplacian (forced at every size) against
+    the factorization of the pinned system (the default at these sizes):
+    the corrected gradients agree to 1e-9 of the correction (M's condition
+    number here is ~1e3, CG stops at a relative residual of 1e-13, the
+    factorization at round-off), and sum to zero at every point."""
+    mesh, options = _two_bodies(), {"support": 2.0, "intorder": 3}
+    if case == "axisymmetric":
+        mesh, options["axisymmetric"] = mesh.translated([0.5, 0.0]), True
+    elif case == "3D":
+        mesh = MeshHex.init_tensor(*[np.linspace(0, 1, 6)] * 3)
+        mesh = MeshHex(mesh.p + 0.03 * np.sin(7 * mesh.p[[1, 2, 0]]), mesh.t)
+
+    direct = RKBasis(mesh, vector=True, **options)
+    assert mesh.nvertices <= integration.LAPLACIAN_DIRECT_MAX_UNKNOWNS
+    monkeypatch.setattr(integration, "LAPLACIAN_DIRECT_MAX_UNKNOWNS", 0)
+    called = []
+    solve = integration._laplacian_solve
+    monkeypatch.setattr(integration, "_laplacian_solve",
+                        lambda *args, **kw: called.append(1) or solve(*args, **kw))
+    iterative = RKBasis(mesh, vector=True, **options)
+    assert called
     scale = np.abs(direct.test_grads - direct.table.grads).max()
     assert scale > 1e-4 * np.abs(direct.table.grads).max()  # a correction to check
     assert np.abs(iterative.test_grads - direct.test_grads).max() < 1e-9 * scale
-    nq, rows = iterative.table.npoints, iterative.table.rows
+    dim, nq, rows = mesh.dim(), iterative.table.npoints, iterative.table.rows
     sums = np.stack([np.bincount(rows, iterative.test_grads[k], minlength=nq)
-                     for k in range(2)])
+                     for k in range(dim)])
     assert np.abs(sums).max() < 1e-12 * np.abs(iterative.test_grads).max()
 
 
-def test_patch_test_on_two_separate_bodies():
-    """Each body has its own constant null space: the linear patch test of
-    the (Petrov-Galerkin) VCI basis passes on both to round-off."""
+def test_patch_test_on_two_separate_bodies(monkeypatch):
+    """Each body has its own constant null space: with the CG solve, the
+    linear patch test of the (Petrov-Galerkin) VCI basis passes on both to
+    round-off."""
+    monkeypatch.setattr(integration, "LAPLACIAN_DIRECT_MAX_UNKNOWNS", 0)
     left = MeshQuad.init_tensor(np.linspace(0, 1, 7), np.linspace(0, 1, 7))
     right = MeshQuad.init_tensor(np.linspace(3, 4, 7), np.linspace(0, 1, 7))
     basis = RKBasis(left + right)

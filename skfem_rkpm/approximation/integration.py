@@ -283,8 +283,10 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     divergence theorem for that polynomial, exact for the quadrature.
 
     For order 1 (``m = 1``) ``M`` is a weighted graph Laplacian (zero row
-    sums, off-diagonal entries ``-∫̂ φ_I φ_J / Φ ≤ 0``): it is solved as it
-    is, semidefinite, by :func:`_laplacian_solve`.  Otherwise ``ξ`` of one
+    sums, off-diagonal entries ``-∫̂ φ_I φ_J / Φ ≤ 0``): above
+    :data:`LAPLACIAN_DIRECT_MAX_UNKNOWNS` unknowns it is solved as it is,
+    semidefinite, by :func:`_laplacian_solve` (``nodes`` and ``radius``, the
+    particles and their support radii, shape its coarse space).  Otherwise ``ξ`` of one
     particle per body is set to zero and its constraints, implied by the
     others, are dropped: the rest of ``M`` is positive definite, and is
     solved by :func:`_pinned_spd_solve`.
@@ -292,14 +294,15 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     nnodes, m, _ = A.shape
     dim = rhs.shape[1]
     n = nnodes * m
-    WH = sp.csr_matrix((H.data * np.repeat(weights / Phi, np.diff(H.indptr)),
-                        H.indices, H.indptr), shape=H.shape)
+    scaled = np.repeat(weights / Phi, np.diff(H.indptr))  # w_q / Φ_q at each entry
+    scaled *= H.data
+    WH = sp.csr_matrix((scaled, H.indices, H.indptr), shape=H.shape)
     M = WH.T @ H
     M = (sp.bsr_matrix((A, np.arange(nnodes), np.arange(nnodes + 1)), shape=(n, n))
          - M).tocsr()
     nbodies, body = connected_components(M, directed=False)
     b = rhs.transpose(0, 2, 1).reshape(n, dim)
-    if m == 1:
+    if m == 1 and n > LAPLACIAN_DIRECT_MAX_UNKNOWNS:
         return _laplacian_solve(M, b, body, nbodies, nodes, radius).reshape(nnodes, m, dim)
     _, pinned = np.unique(body[::m], return_index=True)  # first particle of each body
     block = np.arange(n).reshape(nnodes, m)
@@ -310,13 +313,27 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
 #: solve stops: the integration constraints then hold to this fraction of
 #: their right-hand side, round-off for the patch test
 RTOL = 1e-13
-#: up to this many unknowns the VCI system is factored (SuperLU): measured on
-#: the rectangle of docs/performance.md ("Building an RK basis"), the
-#: factorization is as fast as AMG + CG at 1.7e4 unknowns (0.8 against
-#: 0.9 s) and slower above (16 against 9 s at 1.1e5), where its fill grows
-#: faster than the particles
+#: up to this many unknowns the VCI systems of :func:`_pinned_spd_solve`
+#: (order 2, symmetric VCI) are factored (SuperLU): measured on the order-1
+#: system of the rectangle of docs/performance.md ("Building an RK basis"),
+#: when it was solved that way, the factorization is as fast as AMG + CG at
+#: 1.7e4 unknowns (0.8 against 0.9 s) and slower above (16 against 9 s at
+#: 1.1e5), where its fill grows faster than the particles
 DIRECT_MAX_UNKNOWNS = 20_000
 
+
+#: up to this many unknowns the order-1 VCI system is factored like the
+#: others (:func:`_pinned_spd_solve`) instead of solved by
+#: :func:`_laplacian_solve`: a factorization's result moves by round-off
+#: when the shape functions do (the compiled and the numpy shape kernels
+#: agree to round-off only), the point where conjugate gradients stop moves
+#: by up to their tolerance.  Measured: the forces of the ring scene's
+#: 6 x 4 test run (tests/test_sweep.py) differ between the two shape kernels
+#: by 6e-14 of their size with the factorization, 3.5e-11 with CG; the
+#: VCI correction on the benchmark rectangle takes 0.10 against 0.08 s at
+#: 1.7e3 particles, 0.39 against 0.33 s at 5.0e3 and 0.85 against 0.61 s
+#: at 9.8e3 (factored against CG, load 3-5)
+LAPLACIAN_DIRECT_MAX_UNKNOWNS = 5_000
 
 #: side of the grid cells whose particles (of one body) form one aggregate of
 #: the coarse space of :func:`_laplacian_solve`, in median support radii:
@@ -361,11 +378,12 @@ def _laplacian_solve(M, b, body, nbodies, nodes, radius, rtol=RTOL, maxiter=1000
     x = np.zeros(b.shape)
     for k in range(b.shape[1]):
         rhs = centred(b[:, k])
-        target = rtol * np.linalg.norm(rhs)
+        target = rtol * np.sqrt(_inner(rhs, rhs))
         if target == 0.0:
             continue
         x[:, k] = _preconditioned_cg(M, rhs, precondition, target, maxiter)
-        residual = np.linalg.norm(rhs - M @ x[:, k])
+        error = rhs - M @ x[:, k]
+        residual = np.sqrt(_inner(error, error))
         # the true residual may exceed the recursive one CG stops on by a little
         if not residual <= 10 * target:
             raise RuntimeError(
@@ -426,24 +444,35 @@ def _two_level_preconditioner(M, body, nbodies, nodes, side):
 def _preconditioned_cg(M, b, precondition, target, maxiter):
     """Conjugate gradients for ``M x = b`` from ``x = 0``, preconditioned by
     ``precondition`` (``r -> P⁻¹ r``), until the recursive residual's norm
-    is at most ``target``."""
+    is at most ``target``.
+
+    The inner products are numpy sums (:func:`_inner`), not BLAS dots, whose
+    rounding depends on the number of threads: the result is the same
+    whatever the threading, as with a factorization.
+    """
     x = np.zeros_like(b)
     r = b.copy()
     z = precondition(r)
     direction = z.copy()
-    rz = r @ z
+    rz = _inner(r, z)
     for _ in range(maxiter):
         q = M @ direction
-        step = rz / (direction @ q)
+        step = rz / _inner(direction, q)
         x += step * direction
         r -= step * q
-        if np.linalg.norm(r) <= target:
+        if np.sqrt(_inner(r, r)) <= target:
             break
         z = precondition(r)
-        rz, previous = r @ z, rz
+        rz, previous = _inner(r, z), rz
         direction *= rz / previous
         direction += z
     return x
+
+
+def _inner(u, v):
+    """``u · v`` by numpy's pairwise sum: the same rounding on any number of
+    threads (a BLAS dot splits the sum among its threads)."""
+    return np.sum(u * v)
 
 
 def _pinned_spd_solve(M, b, pinned, rtol=RTOL):

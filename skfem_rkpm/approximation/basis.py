@@ -91,7 +91,8 @@ def _padded(table, nelems, nqp, grads, cells=None):
     # pair (slot, point q = cell nqp + qp) goes to entry slot nq + q of the
     # flattened (nloc, nelems, nqp) arrays
     npoints = nelems * nqp
-    flat = slot * npoints + table.rows
+    flat = slot * npoints
+    flat += table.rows
     values = np.zeros((nloc, nelems, nqp))
     values.reshape(-1)[flat] = table.values
     g = None

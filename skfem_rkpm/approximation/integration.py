@@ -18,9 +18,9 @@ basis order ``n`` (shifted to the particle and scaled by its support).  The
 Shepard-weighted mean subtracted from ``a_I`` keeps the derivative of the
 partition of unity, Σ_I ∇̃Ψ_I = 0 at every point, so internal forces are
 self-equilibrated for any stress.  The coefficients of all particles are
-fixed together (one sparse symmetric positive definite solve, by
-AMG-preconditioned conjugate gradients where pyamg is installed) so that, with the quadrature in
-use,
+fixed together (one sparse symmetric positive semidefinite solve: for a
+linear basis a graph Laplacian, by conjugate gradients with a coarse
+correction, :mod:`.laplacian`) so that, with the quadrature in use,
 
     ∫̂_Ω ∇̃Ψ_I p_α dΩ + ∫̂_Ω Ψ_I ∇p_α dΩ = ∫̂_Γ Ψ_I p_α n dΓ    for |α| ≤ n - 1.
 
@@ -36,6 +36,7 @@ from scipy.sparse.linalg import splu
 from skfem import CellBasis, FacetBasis
 
 from .kernels import get_kernel
+from .laplacian import laplacian_solve
 from .shape import _window, monomial_exponents
 
 __all__ = ["cell_geometry", "facet_geometry", "vci_gradients"]
@@ -232,8 +233,8 @@ def _weighted_kernel_matrix(kernel_matrix, p):
                          shape=(nq, nnodes * m))
 
 
-def _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, normals, nodes,
-                    scale, exps, dp, p, axisymmetric):
+def _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, normals,
+                    nodes, scale, exps, dp, p, axisymmetric):
     """``r_I,k,α = ∫_Γ Ψ_I p_α n_k - ∫_Ω Ψ_I ∂_k p_α - ∫_Ω ∂_k Ψ_I p_α``, shape
     (nnodes, dim, m): what the corrections must integrate to.
 
@@ -262,7 +263,8 @@ def _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, no
     if axisymmetric:  # ∂R/∂R = 1: the extra term -∫ Ψ_I p_α dR dZ
         for a in range(m):
             rhs[:, 0, a] -= _integrate_pairs(
-                kernel_matrix, table.values if a == 0 else table.values * p[:, a], weights / x[0])
+                kernel_matrix, table.values if a == 0 else table.values * p[:, a],
+                weights / x[0])
     return rhs
 
 
@@ -285,11 +287,11 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     For order 1 (``m = 1``) ``M`` is a weighted graph Laplacian (zero row
     sums, off-diagonal entries ``-∫̂ φ_I φ_J / Φ ≤ 0``): above
     :data:`LAPLACIAN_DIRECT_MAX_UNKNOWNS` unknowns it is solved as it is,
-    semidefinite, by :func:`_laplacian_solve` (``nodes`` and ``radius``, the
-    particles and their support radii, shape its coarse space).  Otherwise ``ξ`` of one
-    particle per body is set to zero and its constraints, implied by the
-    others, are dropped: the rest of ``M`` is positive definite, and is
-    solved by :func:`_pinned_spd_solve`.
+    semidefinite, by :func:`laplacian_solve` (``nodes`` and ``radius``, the
+    particles and their support radii, shape its coarse space).  Otherwise
+    ``ξ`` of one particle per body is set to zero and its constraints,
+    implied by the others, are dropped: the rest of ``M`` is positive
+    definite, and is solved by :func:`_pinned_spd_solve`.
     """
     nnodes, m, _ = A.shape
     dim = rhs.shape[1]
@@ -303,7 +305,8 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     nbodies, body = connected_components(M, directed=False)
     b = rhs.transpose(0, 2, 1).reshape(n, dim)
     if m == 1 and n > LAPLACIAN_DIRECT_MAX_UNKNOWNS:
-        return _laplacian_solve(M, b, body, nbodies, nodes, radius).reshape(nnodes, m, dim)
+        return laplacian_solve(M, b, body, nbodies, nodes, radius, RTOL).reshape(
+            nnodes, m, dim)
     _, pinned = np.unique(body[::m], return_index=True)  # first particle of each body
     block = np.arange(n).reshape(nnodes, m)
     return _pinned_spd_solve(M, b, block[pinned].ravel()).reshape(nnodes, m, dim)
@@ -324,7 +327,7 @@ DIRECT_MAX_UNKNOWNS = 20_000
 
 #: up to this many unknowns the order-1 VCI system is factored like the
 #: others (:func:`_pinned_spd_solve`) instead of solved by
-#: :func:`_laplacian_solve`: a factorization's result moves by round-off
+#: :func:`laplacian_solve`: a factorization's result moves by round-off
 #: when the shape functions do (the compiled and the numpy shape kernels
 #: agree to round-off only), the point where conjugate gradients stop moves
 #: by up to their tolerance.  Measured: the forces of the ring scene's
@@ -334,146 +337,6 @@ DIRECT_MAX_UNKNOWNS = 20_000
 #: 1.7e3 particles, 0.39 against 0.33 s at 5.0e3 and 0.85 against 0.61 s
 #: at 9.8e3 (factored against CG, load 3-5)
 LAPLACIAN_DIRECT_MAX_UNKNOWNS = 5_000
-
-#: side of the grid cells whose particles (of one body) form one aggregate of
-#: the coarse space of :func:`_laplacian_solve`, in median support radii:
-#: measured on the 17k rectangle of docs/performance.md ("Building an RK
-#: basis"), 1, 1.5 and 2 radii take 32-62, 40 and 48 iterations per
-#: right-hand side (Jacobi alone 210-230)
-AGGREGATE_SIDE = 1.5
-
-
-def _laplacian_solve(M, b, body, nbodies, nodes, radius, rtol=RTOL, maxiter=1000):
-    """Solve ``M x = b`` for a weighted graph Laplacian ``M`` over the
-    particles: symmetric, positive semidefinite, its null space the vectors
-    constant on each connected body (``body``, labels ``0 .. nbodies - 1``).
-
-    Conjugate gradients on the semidefinite system itself, one right-hand
-    side after the other, preconditioned by :func:`_two_level_preconditioner`
-    (the diagonal plus a coarse correction on aggregates of nearby
-    particles): the part of ``b`` in the null space (zero up to round-off
-    for a consistent system) is removed first, so that the iteration stays in
-    the range of ``M``, and the solution is returned with zero mean on each
-    body (any other constant per body solves it as well).  Each iteration is
-    one product with ``M`` and one solve with the coarse matrix: time and
-    memory grow like the nonzeros of ``M`` (about 40 iterations per
-    right-hand side on the 17k rectangle of docs/performance.md, "Building an
-    RK basis"), and no fill is formed but the coarse one.  The iteration
-    stops at the relative residual ``rtol``, checked on ``b - M x`` itself.
-
-    Raises
-    ------
-    RuntimeError
-        If ``rtol`` is not reached in ``maxiter`` iterations (``M`` is then
-        not a Laplacian with a positive diagonal).
-    """
-    n = M.shape[0]
-    size = np.bincount(body, minlength=nbodies)
-
-    def centred(v):  # the part of v orthogonal to the null space
-        return v - (np.bincount(body, v, minlength=nbodies) / size)[body]
-
-    precondition = _two_level_preconditioner(M, body, nbodies, nodes,
-                                             AGGREGATE_SIDE * np.median(radius))
-    x = np.zeros(b.shape)
-    for k in range(b.shape[1]):
-        rhs = centred(b[:, k])
-        target = rtol * np.sqrt(_inner(rhs, rhs))
-        if target == 0.0:
-            continue
-        x[:, k] = _preconditioned_cg(M, rhs, precondition, target, maxiter)
-        error = rhs - M @ x[:, k]
-        residual = np.sqrt(_inner(error, error))
-        # the true residual may exceed the recursive one CG stops on by a little
-        if not residual <= 10 * target:
-            raise RuntimeError(
-                "VCI: conjugate gradients did not reach a relative residual of "
-                f"{rtol:g} on the correction system ({n} unknowns, {maxiter} "
-                f"iterations; reached {residual / target * rtol:.2g})")
-        x[:, k] = centred(x[:, k])
-    return x
-
-
-def _two_level_preconditioner(M, body, nbodies, nodes, side):
-    """``r -> D⁻¹ r + Z E⁺ Zᵀ r`` for the Laplacian ``M``: its diagonal ``D``
-    plus a coarse solve, ``Z`` the piecewise constant functions on
-    aggregates (the particles of one body in one cell of a grid of the given
-    ``side``), ``E = Zᵀ M Z`` the aggregates' Laplacian, factored (SuperLU)
-    with one aggregate per body pinned (``E`` is singular like ``M``; ``E⁺``
-    is then a symmetric generalized inverse, so the preconditioner stays
-    symmetric positive definite on the range of ``M``).
-
-    Raises
-    ------
-    RuntimeError
-        If a diagonal entry of ``M`` is not positive.
-    """
-    diagonal = M.diagonal()
-    if not np.all(diagonal > 0):
-        I = int(np.flatnonzero(~(diagonal > 0))[0])
-        raise RuntimeError(f"VCI: the correction system has a diagonal entry "
-                           f"{diagonal[I]:g} <= 0 at unknown {I}")
-    inverse_diagonal = 1.0 / diagonal
-    n = M.shape[0]
-    cell = np.floor((nodes - nodes.min(axis=1, keepdims=True)) / side).astype(np.int64)
-    key = body.astype(np.int64)
-    for k in range(nodes.shape[0]):
-        key = key * (cell[k].max() + 1) + cell[k]
-    _, aggregate = np.unique(key, return_inverse=True)
-    aggregate = aggregate.ravel()
-    naggregates = int(aggregate.max()) + 1
-    Z = sp.csr_matrix((np.ones(n), aggregate, np.arange(n + 1)), shape=(n, naggregates))
-    E = (Z.T @ (M @ Z)).tocsc()
-    aggregate_body = np.zeros(naggregates, dtype=np.int64)
-    aggregate_body[aggregate] = body
-    free = np.ones(naggregates, dtype=bool)
-    free[np.unique(aggregate_body, return_index=True)[1]] = False
-    coarse = splu(E[free][:, free].tocsc(), permc_spec="MMD_AT_PLUS_A") if free.any() \
-        else None
-
-    def precondition(r):
-        z = inverse_diagonal * r
-        if coarse is not None:
-            y = np.zeros(naggregates)
-            y[free] = coarse.solve(np.bincount(aggregate, r, minlength=naggregates)[free])
-            z += y[aggregate]
-        return z
-    return precondition
-
-
-def _preconditioned_cg(M, b, precondition, target, maxiter):
-    """Conjugate gradients for ``M x = b`` from ``x = 0``, preconditioned by
-    ``precondition`` (``r -> P⁻¹ r``), until the recursive residual's norm
-    is at most ``target``.
-
-    The inner products are numpy sums (:func:`_inner`), not BLAS dots, whose
-    rounding depends on the number of threads: the result is the same
-    whatever the threading, as with a factorization.
-    """
-    x = np.zeros_like(b)
-    r = b.copy()
-    z = precondition(r)
-    direction = z.copy()
-    rz = _inner(r, z)
-    for _ in range(maxiter):
-        q = M @ direction
-        step = rz / _inner(direction, q)
-        x += step * direction
-        r -= step * q
-        if np.sqrt(_inner(r, r)) <= target:
-            break
-        z = precondition(r)
-        rz, previous = _inner(r, z), rz
-        direction *= rz / previous
-        direction += z
-    return x
-
-
-def _inner(u, v):
-    """``u · v`` by numpy's pairwise sum: the same rounding on any number of
-    threads (a BLAS dot splits the sum among its threads)."""
-    return np.sum(u * v)
-
 
 def _pinned_spd_solve(M, b, pinned, rtol=RTOL):
     """Solve ``M x = b`` with ``x = 0`` at the ``pinned`` unknowns (their

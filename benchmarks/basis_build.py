@@ -80,9 +80,10 @@ def child(particles, repeat):
 
     basis_module.shape_functions = timed("shape", basis_module.shape_functions)
     basis_module.vci_gradients = timed("vci", basis_module.vci_gradients)
-    basis_module._padded = timed("layout", basis_module._padded)
-    if hasattr(basis_module, "_cell_particles"):
-        basis_module._cell_particles = timed("layout", basis_module._cell_particles)
+    from skfem_rkpm.approximation import cell_layout
+
+    cell_layout.padded = timed("layout", cell_layout.padded)
+    cell_layout.cell_particles = timed("layout", cell_layout.cell_particles)
 
     try:  # load the compiled kernel (if installed) outside the timing
         from skfem_rkpm.approximation.shape import rk_shape_functions

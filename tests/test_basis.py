@@ -178,13 +178,13 @@ def test_gauss_degree_without_a_rule_names_the_degree_and_the_cells():
 
 def test_per_cell_particle_lists_are_the_sorted_unique_particles_of_each_cell():
     """The per-cell layout (no global sort) equals the np.unique reference."""
-    from skfem_rkpm.approximation.basis import _cell_particles
+    from skfem_rkpm.approximation.cell_layout import cell_particles
     from skfem_rkpm.meshes import rectangle
 
     mesh = rectangle(1.0, 0.7, 9, 6, kind="tri", perturb=0.2, seed=2)
     b = RKBasis(mesh, support=2.5, intorder=3, integration="gauss")
     nqp = b.X.shape[-1]
-    indptr, indices, slot = _cell_particles(b.table, b.nelems, nqp)
+    indptr, indices, slot = cell_particles(b.table, b.nelems, nqp)
     cell = b.table.rows // nqp
     for e in range(b.nelems):
         pairs = cell == e

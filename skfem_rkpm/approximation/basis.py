@@ -20,87 +20,18 @@ import scipy.sparse as sp
 from skfem.assembly.basis import AbstractBasis
 from skfem.element import DiscreteField
 
+from . import cell_layout
 from .basis_views import CellViews, FacetViews
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
 from .interpolating import basis_primitive_radius, shape_functions
-from .shape import ShapeTable, coordinates
+from .shape import coordinates
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
 INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss") + NODAL_SCHEMES
-
-
-def _rows(table, start, stop):
-    """The rows ``start:stop`` (evaluation points) of a shape table."""
-    lo, hi = table.indptr[start], table.indptr[stop]
-    return ShapeTable(table.indptr[start:stop + 1] - lo, table.indices[lo:hi],
-                      table.values[lo:hi],
-                      None if table.grads is None else table.grads[:, lo:hi],
-                      table.nnodes,
-                      None if table.kernel is None else table.kernel[lo:hi])
-
-
-def _cell_particles(table, nelems, nqp):
-    """The particles of each cell and the slot of every pair among them.
-
-    The particles of a cell are those of its ``nqp`` quadrature points
-    (consecutive rows of ``table``), each once, in increasing order: the
-    cell-particle incidence in CSR with its duplicates merged, a sort of each
-    cell's own pairs rather than of all pairs together.
-
-    Returns
-    -------
-    indptr, indices : ndarray
-        Particles of cell ``e``: ``indices[indptr[e]:indptr[e + 1]]``.
-    slot : ndarray, shape (npairs,)
-        Position of each pair's particle in the list of its cell.
-    """
-    cell_pairs = table.indptr[::nqp]  # pairs of cell e: cell_pairs[e]:cell_pairs[e + 1]
-    incidence = sp.csr_matrix((np.ones(len(table.indices), dtype=np.int32),
-                               table.indices, cell_pairs),
-                              shape=(nelems, table.nnodes))
-    incidence.sum_duplicates()  # sorts and merges each row
-    indptr = incidence.indptr.astype(np.int64)
-    indices = incidence.indices.astype(np.int64)
-    count = np.diff(indptr)
-    # each entry holds its position in its row; the pairs read it there
-    incidence.data = (np.arange(len(indices)) - np.repeat(indptr[:-1], count)
-                      ).astype(incidence.data.dtype)
-    cell = np.repeat(np.arange(nelems), np.diff(cell_pairs))
-    slot = np.asarray(incidence[cell, table.indices]).ravel()
-    return indptr, indices, slot
-
-
-def _padded(table, nelems, nqp, grads, cells=None):
-    """Per-cell padded node lists and values from a pair table.
-
-    ``cells``: :func:`_cell_particles` of the table if already known.
-    Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems, nqp)
-    and ``grads`` (dim, nloc, nelems, nqp) (None if ``grads`` is None).
-    """
-    indptr, indices, slot = cells or _cell_particles(table, nelems, nqp)
-    count = np.diff(indptr)
-    nloc = int(count.max())
-    # padding slots point at the cell's first particle and carry zeros
-    element_nodes = np.repeat(indices[indptr[:-1]][None, :], nloc, axis=0)
-    element_nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
-                  np.repeat(np.arange(nelems), count)] = indices
-    # pair (slot, point q = cell nqp + qp) goes to entry slot nq + q of the
-    # flattened (nloc, nelems, nqp) arrays
-    npoints = nelems * nqp
-    flat = slot * npoints
-    flat += table.rows
-    values = np.zeros((nloc, nelems, nqp))
-    values.reshape(-1)[flat] = table.values
-    g = None
-    if grads is not None:
-        g = np.zeros((grads.shape[0], nloc, nelems, nqp))
-        for k in range(grads.shape[0]):
-            g[k].reshape(-1)[flat] = grads[k]
-    return element_nodes, values, g
 
 
 class _RKBase(AbstractBasis):
@@ -119,8 +50,8 @@ class _RKBase(AbstractBasis):
         self.tind = None
         self.mapping = geometry.mapping
         nqp = self.X.shape[-1]
-        self._cells = _cell_particles(table, self.nelems, nqp)
-        self.element_nodes, self.values, self.grads = _padded(
+        self._cells = cell_layout.cell_particles(table, self.nelems, nqp)
+        self.element_nodes, self.values, self.grads = cell_layout.padded(
             table, self.nelems, nqp, test_grads, self._cells
         )
         self.Nbfun = self.ncomp * self.element_nodes.shape[0]
@@ -400,7 +331,7 @@ class RKBasis(CellViews, _RKBase):
         # once, for all of them, with a dilation that works everywhere
         sizes = np.cumsum([0, xq.shape[1], xb.shape[1], nodes.shape[1]])
         everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes)
-        table, btable, ntable = (_rows(everything, a, b)
+        table, btable, ntable = (cell_layout.table_rows(everything, a, b)
                                  for a, b in zip(sizes[:-1], sizes[1:]))
         self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
             nodes.shape[0] if vector else 1), format="csr")
@@ -460,7 +391,7 @@ class RKBasis(CellViews, _RKBase):
             return self
         if getattr(self, "_trial", None) is None:
             trial = copy.copy(self)
-            _, _, trial.grads = _padded(self.table, self.nelems, self.X.shape[-1],
+            _, _, trial.grads = cell_layout.padded(self.table, self.nelems, self.X.shape[-1],
                                         self.table.grads, self._cells)
             trial.test_grads = self.table.grads
             trial._basis = None

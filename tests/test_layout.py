@@ -22,7 +22,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "skfem_rkpm"
 RANK = {"": 0, "approximation": 1, "mechanics": 2, "solvers": 3,
         "verification": 4, "runs": 4}
 
-OPTIONAL = ("numba", "dask", "distributed", "pypardiso", "sksparse", "pyamg",
+OPTIONAL = ("numba", "dask", "distributed", "pypardiso", "sksparse", "pyamg", "cvxopt",
             "petsc4py", "mpi4py", "hypothesis", "pytest")
 
 

@@ -20,7 +20,7 @@ from skfem_rkpm.solvers.constrained import _penalty, solve_constrained
 from skfem_rkpm.solvers.linear import (BackendUnavailable, NotPositiveDefinite, available,
                                        is_symmetric, make_solver)
 
-OPTIONAL = ["pardiso", "cholmod", "amg"]
+OPTIONAL = ["pardiso", "cholmod", "umfpack", "amg"]
 ALL = ["dense", "superlu", *OPTIONAL]
 EPS = np.finfo(float).eps
 
@@ -106,7 +106,7 @@ def test_backend_solves_the_constrained_system(name, kind):
     assert np.abs(C @ d - g).max() < 1e-9 * np.abs(g).max()
 
 
-@pytest.mark.parametrize("name", ["dense", "superlu", "pardiso", "amg"])
+@pytest.mark.parametrize("name", ["dense", "superlu", "pardiso", "umfpack", "amg"])
 def test_backend_solves_a_non_symmetric_system(name):
     """A friction-like non-symmetric tangent: K plus a skew part of 10 % of |K|."""
     solver = backend(name)
@@ -121,7 +121,7 @@ def test_backend_solves_a_non_symmetric_system(name):
     assert rel(x, ref) < tolerance(A, name)
 
 
-@pytest.mark.parametrize("name", ["pardiso", "cholmod"])
+@pytest.mark.parametrize("name", ["pardiso", "cholmod", "umfpack"])
 def test_analysis_is_reused_while_the_pattern_stays(name):
     solver = backend(name)
     K, C, _, f = system("fem")
@@ -151,6 +151,7 @@ def big(n, symmetric):
     (["dense", "superlu", "cholmod"], False, True, "superlu"),   # KKT: indefinite
     (["dense", "superlu", "cholmod", "amg"], True, False, "superlu"),
     (["dense", "superlu", "pardiso"], False, False, "superlu"),  # below PARDISO_LIMIT
+    (["dense", "superlu", "umfpack"], False, False, "superlu"),  # below UMFPACK_LIMIT
 ])
 def test_auto_choice_for_large_systems(installed, spd, symmetric, expected):
     auto = make_solver("auto")
@@ -166,6 +167,50 @@ def test_auto_takes_pardiso_for_the_largest_systems(spd, symmetric):
     auto.installed = ["dense", "superlu", "pardiso", "cholmod"]
     assert auto.choose(big(linsolve.PARDISO_LIMIT + 100, symmetric), spd=spd) == "pardiso"
     assert auto.choose(big(linsolve.PARDISO_LIMIT, symmetric), spd=spd) != "pardiso"
+
+
+@pytest.mark.parametrize("installed, spd, symmetric, expected", [
+    (["dense", "superlu", "umfpack"], False, False, "umfpack"),   # RK with VCI, friction
+    (["dense", "superlu", "umfpack"], True, True, "umfpack"),
+    (["dense", "superlu", "umfpack", "cholmod"], True, True, "cholmod"),
+    (["dense", "superlu", "umfpack", "cholmod"], True, False, "umfpack"),
+    (["dense", "superlu", "umfpack", "pardiso"], False, False, "pardiso"),
+    (["dense", "superlu"], False, False, "superlu"),                # not installed
+])
+def test_auto_takes_umfpack_above_its_limit(installed, spd, symmetric, expected):
+    auto = make_solver("auto")
+    auto.installed = installed
+    n = max(linsolve.UMFPACK_LIMIT, linsolve.PARDISO_LIMIT) + 100
+    assert auto.choose(big(n, symmetric), spd=spd) == expected
+
+
+def test_umfpack_matches_dense_lu_on_several_right_hand_sides():
+    """Non-symmetric RK tangent (VCI) plus a friction-like coupling of the
+    x rows to the y columns: UMFPACK against LAPACK on four right-hand
+    sides, 1-D and 2-D."""
+    solver = backend("umfpack")
+    K, C, _, f = system("rk")
+    A = (K + _penalty(K, C) * (C.T @ C)).tocsr()
+    A = (A + 0.3 * abs(K).max() * sp.eye(A.shape[0], k=1)).tocsr()  # x_i depends on y_i
+    assert not is_symmetric(A)
+    F = np.random.default_rng(5).normal(size=(A.shape[0], 4)) * 100.0
+    ref = np.linalg.solve(A.toarray(), F)
+    solver.factor(A)
+    X = solver.solve(F)
+    assert X.shape == F.shape
+    for j in range(4):
+        assert rel(X[:, j], ref[:, j]) < tolerance(A, "umfpack")
+        assert rel(solver.solve(F[:, j]), ref[:, j]) < tolerance(A, "umfpack")
+
+
+def test_umfpack_reports_a_singular_matrix():
+    solver = backend("umfpack")
+    K = system("fem")[0]  # no supports: rigid-body modes, singular
+    A = K.tolil()
+    A[0, :] = 0.0
+    A[:, 0] = 0.0
+    with pytest.raises(RuntimeError, match="singular"):
+        solver.factor(A.tocsr())
 
 
 def test_auto_says_what_it_picked_and_solves():

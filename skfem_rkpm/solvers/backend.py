@@ -21,6 +21,7 @@ BACKENDS = {
     "superlu": (None, None),
     "pardiso": ("pypardiso", "pardiso"),
     "cholmod": ("sksparse.cholmod", "cholmod"),
+    "umfpack": ("cvxopt", "umfpack"),
     "amg": ("pyamg", "amg"),
     "petsc": ("petsc4py", "petsc"),
     "petsc-gamg": ("petsc4py", "petsc"),

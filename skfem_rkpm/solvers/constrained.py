@@ -121,7 +121,7 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     """Solve ``K d = f + Cᵀ λ``, ``C d = g`` with ``solver``; return ``d``, ``λ``.
 
     The saddle-point system is ``[[K, Cᵀ], [C, 0]] [d; -λ] = [f; g]``.
-    Dense LU, PARDISO and PETSc (MUMPS) factor it as it is.
+    Dense LU, UMFPACK, PARDISO and PETSc (MUMPS) factor it as it is.
 
     SuperLU and the SPD-only backends (CHOLMOD, AMG) use the augmented
     Lagrangian instead: with ``K_ρ = K + ρ CᵀC`` the system becomes

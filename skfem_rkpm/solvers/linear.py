@@ -26,6 +26,11 @@ Backends (``make_solver(name)``):
 ``"pardiso"``
     MKL PARDISO through ``pypardiso`` (``pip install skfem-rkpm[pardiso]``,
     about 1 GB with MKL).  Any nonsingular matrix; analysis reused.
+``"umfpack"``
+    UMFPACK multifrontal LU (SuiteSparse) through the ``cvxopt`` wheel
+    (``pip install skfem-rkpm[umfpack]``, 21 MB, 65 MB installed, no
+    compiler needed).  Any nonsingular matrix; analysis reused.  Factors the
+    1e5-particle RK tangent that SuperLU cannot (docs/performance.md).
 ``"cholmod"``
     CHOLMOD supernodal Cholesky through ``scikit-sparse``
     (``pip install skfem-rkpm[cholmod]`` after
@@ -63,7 +68,7 @@ from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_
 from .petsc import PETScGAMG, PETScLU
 
 __all__ = ["make_solver", "available", "Solver", "BackendUnavailable",
-           "is_symmetric", "DENSE_LIMIT", "BACKENDS"]
+           "is_symmetric", "DENSE_LIMIT", "UMFPACK_LIMIT", "BACKENDS"]
 
 #: systems up to this size are solved with dense LU by ``"auto"`` (measured:
 #: SuperLU wins from about 600 unknowns on, even for RK tangents with 200
@@ -74,6 +79,12 @@ DENSE_LIMIT = 500
 #: core, SuperLU is faster up to about 1e4 unknowns, and PARDISO with several
 #: threads is not bitwise reproducible from run to run
 PARDISO_LIMIT = 20000
+
+#: ``"auto"`` takes UMFPACK (if installed) only above this size: measured on one
+#: core (docs/performance.md, "Linear solvers"), SuperLU and UMFPACK are even
+#: at 2e4 unknowns and UMFPACK pulls ahead above
+UMFPACK_LIMIT = 20000
+
 
 class DenseLU(Solver):
     """LAPACK LU with partial pivoting of the dense matrix."""
@@ -190,6 +201,55 @@ class Pardiso(Solver):
             pass
 
 
+class UMFPACK(Solver):
+    """UMFPACK multifrontal LU (SuiteSparse, through the ``cvxopt`` wheel);
+    symbolic analysis (ordering, elimination tree) reused per pattern.
+
+    UMFPACK takes compressed columns; the CSR arrays of ``A`` are the
+    compressed columns of ``Aᵀ``, so ``Aᵀ`` is factored without a copy of
+    the pattern and every solve is a transposed solve.  UMFPACK's automatic
+    strategy (AMD ordering of ``A + Aᵀ`` and diagonal pivots for matrices
+    with a nearly symmetric pattern and a nonzero diagonal, COLAMD and
+    threshold partial pivoting otherwise) handles any nonsingular matrix,
+    the non-symmetric RK and friction tangents included.  Two steps of
+    iterative refinement from the residual.
+    """
+
+    name = "umfpack"
+
+    def __init__(self, symmetric=None, **options):
+        super().__init__(symmetric, **options)
+        self._cvxopt = _import_backend("umfpack")
+        from cvxopt import umfpack
+        self._umfpack = umfpack
+
+    def _analyze(self, A):
+        n = A.shape[0]
+        rows = np.repeat(np.arange(n), np.diff(A.indptr))
+        # the transpose in compressed columns: column i holds row i of A
+        self._At = self._cvxopt.spmatrix(A.data, A.indices.astype(int), rows, (n, n))
+        self._symbolic = self._umfpack.symbolic(self._At)
+
+    def _factor(self, A):
+        self._At.V = self._cvxopt.matrix(A.data)  # same pattern: new values in place
+        try:
+            self._numeric = self._umfpack.numeric(self._At, self._symbolic)
+        except ArithmeticError as err:
+            raise RuntimeError(f"UMFPACK: the matrix ({A.shape[0]} unknowns) is singular "
+                               f"({err}); check the supports and constraints") from err
+
+    def _substitute(self, b):
+        B = self._cvxopt.matrix(np.asfortranarray(b.reshape(len(b), -1)))
+        self._umfpack.solve(self._At, self._numeric, B, trans="T")
+        return np.array(B).reshape(b.shape)
+
+    def _solve(self, b):
+        return _refine(self.A, b, self._substitute(b), self._substitute)
+
+    def describe(self):
+        return "UMFPACK LU (cvxopt, SuiteSparse; analysis reused)"
+
+
 class NotPositiveDefinite(np.linalg.LinAlgError):
     """An SPD-only backend met a matrix that is not positive definite."""
 
@@ -299,7 +359,7 @@ class AMG(Solver):
 
 
 _CLASSES = {"dense": DenseLU, "superlu": SuperLU, "pardiso": Pardiso,
-            "cholmod": Cholmod, "amg": AMG, "petsc": PETScLU, "petsc-gamg": PETScGAMG}
+            "cholmod": Cholmod, "umfpack": UMFPACK, "amg": AMG, "petsc": PETScLU, "petsc-gamg": PETScGAMG}
 
 
 class Auto(Solver):
@@ -309,6 +369,8 @@ class Auto(Solver):
     * above ``PARDISO_LIMIT`` unknowns, PARDISO if installed;
     * otherwise, for symmetric matrices known to be positive definite
       (``spd=True``, as in :func:`solve_saddle_point`), CHOLMOD if installed;
+    * otherwise above ``UMFPACK_LIMIT`` unknowns UMFPACK (``cvxopt``) if
+      installed;
     * otherwise SuperLU.
 
     AMG is never picked: it is an iterative method whose cost depends on
@@ -336,6 +398,8 @@ class Auto(Solver):
             sym = self.symmetric if self.symmetric is not None else is_symmetric(A)
             if sym:
                 return "cholmod"
+        if "umfpack" in self.installed and n > UMFPACK_LIMIT:
+            return "umfpack"
         return "superlu"
 
     def backend(self, name):

@@ -19,6 +19,9 @@ from scratch: factorization and one solve):
   complement of the multipliers, refined to a backward error of 1e-12;
 * ``(d)``: ``K + ρCᵀC`` factored and the dense Schur complement
   ``C K_ρ⁻¹ Cᵀ`` formed from ``len(C)`` solves, then a dense solve;
+* ``(e)``: UMFPACK (``umfpack`` backend, if ``cvxopt`` is installed) on the
+  saddle-point matrix as it is (what ``solve_saddle_point`` does with it),
+  and on ``K + ρCᵀC`` with GMRES on the Schur complement as in ``(c)``;
 * for scale: the factorization of ``K + ρCᵀC`` alone, and of ``K`` alone.
 
 For each: entries in the LU factors, pivots off the diagonal (rows
@@ -71,7 +74,7 @@ SYMMETRIC_MMD = dict(permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
 def methods(K, C, f, g):
     """name -> function returning ``(d, λ, lu or None)``."""
     from skfem_rkpm.solvers.constrained import _penalty, solve_saddle_point
-    from skfem_rkpm.solvers.linear import make_solver
+    from skfem_rkpm.solvers.linear import available, make_solver
 
     N = K.shape[0]
     A = sp.bmat([[K, C.T], [C, None]]).tocsc()
@@ -99,6 +102,21 @@ def methods(K, C, f, g):
         lam = np.linalg.solve(S, g - C @ d0)
         return lu.solve(rhs + C.T @ lam), lam, lu
 
+    def umfpack_direct():
+        d, lam = solve_saddle_point(make_solver("umfpack"), K, f, C, g)
+        return d, lam, None
+
+    def umfpack_augmented():
+        from skfem_rkpm.solvers.constrained import _augmented_lagrangian
+        solver = make_solver("umfpack")
+        Krho = (K + rho * (C.T @ C)).tocsr()
+        d, lam = _augmented_lagrangian(solver, solver, K, Krho, rho, f, C, g, 1e-12, 200)
+        return d, lam, None
+
+    extra = {}
+    if "umfpack" in available():
+        extra = {"(e) UMFPACK: saddle point factored as it is": umfpack_direct,
+                 "(e) UMFPACK: K + ρCᵀC, GMRES on the Schur complement": umfpack_augmented}
     return {
         "before: saddle point, MMD(AᵀA+A), symmetric mode": direct(**SYMMETRIC_MMD),
         "(a) saddle point, COLAMD, partial pivoting": direct(permc_spec="COLAMD"),
@@ -106,7 +124,7 @@ def methods(K, C, f, g):
             permc_spec="MMD_ATA", diag_pivot_thresh=0.01, options=dict(SymmetricMode=True)),
         "(c) after: K + ρCᵀC, GMRES on the Schur complement": augmented,
         "(d) K + ρCᵀC, dense Schur complement (len(C) solves)": dense_schur,
-    }
+    } | extra
 
 
 def private_pivot_rows(C):
@@ -147,7 +165,8 @@ def main():
             times.append(time.process_time() - clock)
         if reference is None:
             reference = d, lam
-        entries = f"{lu.L.nnz + lu.U.nnz:,}" if lu is not None else "(K + ρCᵀC's)"
+        entries = (f"{lu.L.nnz + lu.U.nnz:,}" if lu is not None
+                   else "–" if name.startswith("(e)") else "(K + ρCᵀC's)")
         pivots = str(int(np.sum(lu.perm_r != lu.perm_c))) if lu is not None else "-"
         dd = np.linalg.norm(d - reference[0]) / np.linalg.norm(reference[0])
         dl = np.linalg.norm(lam - reference[1]) / np.linalg.norm(reference[1])

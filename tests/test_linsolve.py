@@ -213,6 +213,61 @@ def test_umfpack_reports_a_singular_matrix():
         solver.factor(A.tocsr())
 
 
+@pytest.mark.parametrize("kind", ["fem", "rk-gauss", "rk"])
+def test_superlu_with_nested_dissection_matches_dense_lu(kind, monkeypatch):
+    """SuperLU on the METIS ordering (the path of large systems, forced here
+    on a small one): symmetric (FEM, RK Gauss) and non-symmetric (RK VCI plus
+    a friction-like coupling) against LAPACK, three right-hand sides, and
+    again after a refactorization with the same pattern (ordering reused)."""
+    pytest.importorskip("pymetis")
+    monkeypatch.setattr(linsolve, "ND_LIMIT", 0)
+    K, C, _, f = system(kind)
+    A = (K + _penalty(K, C) * (C.T @ C)).tocsr()
+    if kind == "rk":
+        A = (A + 0.3 * abs(K).max() * sp.eye(A.shape[0], k=1)).tocsr()
+    F = np.column_stack([f, -2 * f, np.random.default_rng(7).normal(size=len(f))])
+    solver = make_solver("superlu")
+    for M in (A, (A + sp.diags(0.5 * A.diagonal())).tocsr()):
+        ref = np.linalg.solve(M.toarray(), F)
+        X = solver.factor(M).solve(F)
+        assert "nested dissection" in solver.describe()
+        for j in range(F.shape[1]):
+            assert rel(X[:, j], ref[:, j]) < tolerance(M, "superlu")
+        assert rel(solver.solve(F[:, 2]), ref[:, 2]) < tolerance(M, "superlu")
+    assert solver.stats["analyses"] == 1 and solver.stats["factorizations"] == 2
+
+
+def test_nested_dissection_keeps_the_components_of_a_particle_together():
+    pytest.importorskip("pymetis")
+    A = (system("rk")[0] + sp.identity(2 * 66)).tocsr()  # 66 particles, 2 components
+    perm = linsolve.nested_dissection(A)
+    assert np.array_equal(np.sort(perm), np.arange(A.shape[0]))
+    assert np.array_equal(perm[1::2], perm[0::2] + 1) and np.all(perm[0::2] % 2 == 0)
+
+
+def test_superlu_orders_by_mmd_without_pymetis(monkeypatch):
+    monkeypatch.setattr("builtins.__import__", _blocking_import("pymetis"))
+    monkeypatch.setattr(linsolve, "ND_LIMIT", 0)
+    K, C, _, f = system("rk")
+    A = (K + _penalty(K, C) * (C.T @ C)).tocsr()
+    assert linsolve.nested_dissection(A) is None
+    solver = make_solver("superlu")
+    x = solver.factor(A).solve(f)
+    assert "MMD" in solver.describe()
+    assert rel(x, np.linalg.solve(A.toarray(), f)) < tolerance(A, "superlu")
+
+
+def _blocking_import(blocked):
+    import builtins
+    real = builtins.__import__
+
+    def fake(name, *args, **kwargs):
+        if name == blocked:
+            raise ImportError(f"No module named {blocked!r}")
+        return real(name, *args, **kwargs)
+    return fake
+
+
 def test_auto_says_what_it_picked_and_solves():
     auto = make_solver("auto")
     assert "nothing factored" in auto.describe()

@@ -80,6 +80,12 @@ DENSE_LIMIT = 500
 #: threads is not bitwise reproducible from run to run
 PARDISO_LIMIT = 20000
 
+#: SuperLU orders systems above this size by nested dissection (if ``pymetis``
+#: is installed), smaller ones by MMD: measured on one core on the 2D RK
+#: tangents (support 3), MMD is faster at 2e4 unknowns (2.0 s against 2.9 s),
+#: nested dissection at 3.4e4 (5.4 s against 6.2 s; docs/performance.md)
+ND_LIMIT = 30000
+
 #: ``"auto"`` takes UMFPACK (if installed) only above this size: measured on one
 #: core (docs/performance.md, "Linear solvers"), SuperLU and UMFPACK are even
 #: at 2e4 unknowns and UMFPACK pulls ahead above
@@ -114,7 +120,10 @@ class DenseLU(Solver):
 
 
 class SuperLU(Solver):
-    """SuperLU, MMD ordering of ``Aᵀ + A`` in symmetric mode; COLAMD fallback.
+    """SuperLU in symmetric mode (pivot threshold 0.01) with a fill-reducing
+    ordering of ``A + Aᵀ``: METIS nested dissection above ``ND_LIMIT``
+    unknowns (``pymetis``), MMD below it or without ``pymetis``; COLAMD with
+    partial pivoting if the residual is poor.
 
     Measured on an RK elasticity saddle-point matrix with 8.5k unknowns and
     217 nonzeros per row: 0.45 s, against 14 s with SuperLU's default partial
@@ -124,20 +133,47 @@ class SuperLU(Solver):
     4160 pivots on the coarse ring sector, 14M factor entries against 6.8M
     for ``K + ρCᵀC``), so
     :func:`~skfem_rkpm.solvers.constrained.solve_saddle_point` gives SuperLU
-    ``K + ρCᵀC`` instead.  scipy exposes no separate symbolic
-    phase, so nothing is reused between factorizations.
+    ``K + ρCᵀC`` instead.  MMD's fill grows too fast for 2D RK tangents of
+    1e5 particles (SuperLU fails with "gstrf was called with invalid
+    arguments" after minutes); nested dissection factors them
+    (docs/performance.md, "Linear solvers").  The nested dissection ordering
+    and the permutation of the pattern are the symbolic analysis, reused
+    while the pattern stays; scipy exposes no other symbolic phase.
     """
 
     name = "superlu"
 
+    def _analyze(self, A):
+        self._perm = nested_dissection(A) if A.shape[0] > ND_LIMIT else None
+        if self._perm is None:
+            return
+        # where each entry of the permuted matrix (compressed columns) comes from
+        where = sp.csr_matrix((np.arange(1, A.nnz + 1, dtype=np.int64), A.indices, A.indptr),
+                              shape=A.shape)
+        where = where[self._perm][:, self._perm].tocsc()
+        self._permuted = (where.data - 1, where.indices, where.indptr)
+
     def _factor(self, A):
-        self._csc = A.tocsc()
-        self._lu = splu(self._csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
-                        options=dict(SymmetricMode=True))
         self.fallback = False
+        self._csc = A.tocsc()
+        if self._perm is None:
+            self._lu = splu(self._csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
+                            options=dict(SymmetricMode=True))
+            return
+        source, indices, indptr = self._permuted
+        P = sp.csc_matrix((A.data[source], indices, indptr), shape=A.shape)
+        self._lu = splu(P, permc_spec="NATURAL", diag_pivot_thresh=0.01,
+                        options=dict(SymmetricMode=True))
+
+    def _substitute(self, b):
+        if self._perm is None or self.fallback:
+            return self._lu.solve(b)
+        x = np.empty_like(b)
+        x[self._perm] = self._lu.solve(b[self._perm])
+        return x
 
     def _solve(self, b):
-        x = self._lu.solve(b)
+        x = self._substitute(b)
         res = np.linalg.norm(self._csc @ x - b)
         if np.isfinite(res) and res <= 1e-10 * np.linalg.norm(b):
             return x
@@ -147,9 +183,45 @@ class SuperLU(Solver):
         return self._lu.solve(b)
 
     def describe(self):
-        how = ("COLAMD, partial pivoting" if getattr(self, "fallback", False)
-               else "MMD(AᵀA+A), symmetric mode, pivot threshold 0.01")
-        return f"SuperLU ({how})"
+        if getattr(self, "fallback", False):
+            return "SuperLU (COLAMD, partial pivoting)"
+        order = ("METIS nested dissection" if getattr(self, "_perm", None) is not None
+                 else "MMD")
+        return f"SuperLU ({order} of Aᵀ+A, symmetric mode, pivot threshold 0.01)"
+
+
+def nested_dissection(A):
+    """METIS nested dissection ordering of the graph of ``A + Aᵀ`` (``pymetis``),
+    or None when ``pymetis`` is not installed.
+
+    Rows come in blocks of ``b`` unknowns of one particle or node (the
+    components of a vector field, numbered together) when consecutive rows
+    have equal lengths; the graph of the blocks is ordered (``b``² times
+    fewer edges) and each block kept together.  ``b`` is the largest of 3,
+    2, 1 for which 99 % of the blocks have rows of equal length.
+    """
+    try:
+        import pymetis
+    except ImportError:
+        return None
+    n = A.shape[0]
+    lengths = np.diff(A.indptr)
+    block = 1
+    for b in (3, 2):
+        m = n // b
+        rows = lengths[:m * b].reshape(m, b)
+        if m and np.mean(np.all(rows == rows[:, :1], axis=1)) >= 0.99:
+            block = b
+            break
+    coarse = -(-n // block)
+    rows = np.repeat(np.arange(n) // block, lengths)
+    G = sp.csr_matrix((np.ones(A.nnz), (rows, A.indices // block)), shape=(coarse, coarse))
+    G = (G + G.T).tocsr()
+    G.setdiag(0)
+    G.eliminate_zeros()
+    order, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(G.indptr, G.indices))
+    perm = (block * np.asarray(order)[:, None] + np.arange(block)).ravel()
+    return perm[perm < n]
 
 
 class Pardiso(Solver):

@@ -193,7 +193,6 @@ def child(folder, case, particles, system, backend):
         solver.factor(A2)
         out["refactor"] = cpu() - c0
         out["describe"] = solver.describe()
-        solver.factor(A)
     else:
         solver = make_solver(backend)
         c0 = cpu()

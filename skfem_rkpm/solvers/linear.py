@@ -19,18 +19,22 @@ Backends (``make_solver(name)``):
     LAPACK LU of the dense matrix.  Best for small systems (the paper's ring,
     352 unknowns with 43 % nonzeros).
 ``"superlu"``
-    scipy's SuperLU with the minimum-degree ordering of ``Aᵀ + A`` in
-    symmetric mode, pivoting off the diagonal only where a pivot is below
-    1 % of its column; COLAMD with partial pivoting if the residual is poor.
-    Always available; handles any nonsingular matrix.
+    scipy's SuperLU in symmetric mode, pivoting off the diagonal only where a
+    pivot is below 1 % of its column, on the METIS nested dissection ordering
+    of ``Aᵀ + A`` (``pymetis``, a default dependency) above ``ND_LIMIT``
+    unknowns and its minimum-degree ordering below; COLAMD with partial
+    pivoting if the residual is poor.  Always available; handles any
+    nonsingular matrix; factors the 1e5-particle RK tangent in 1.6× the time
+    of PARDISO (docs/performance.md).
 ``"pardiso"``
     MKL PARDISO through ``pypardiso`` (``pip install skfem-rkpm[pardiso]``,
     about 1 GB with MKL).  Any nonsingular matrix; analysis reused.
 ``"umfpack"``
     UMFPACK multifrontal LU (SuiteSparse) through the ``cvxopt`` wheel
     (``pip install skfem-rkpm[umfpack]``, 21 MB, 65 MB installed, no
-    compiler needed).  Any nonsingular matrix; analysis reused.  Factors the
-    1e5-particle RK tangent that SuperLU cannot (docs/performance.md).
+    compiler needed).  Any nonsingular matrix; analysis reused.  Only by
+    name: on the RK tangents measured it is no faster than SuperLU with
+    nested dissection and its solves are 10× slower (docs/performance.md).
 ``"cholmod"``
     CHOLMOD supernodal Cholesky through ``scikit-sparse``
     (``pip install skfem-rkpm[cholmod]`` after
@@ -68,7 +72,7 @@ from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_
 from .petsc import PETScGAMG, PETScLU
 
 __all__ = ["make_solver", "available", "Solver", "BackendUnavailable",
-           "is_symmetric", "DENSE_LIMIT", "UMFPACK_LIMIT", "BACKENDS"]
+           "is_symmetric", "DENSE_LIMIT", "ND_LIMIT", "BACKENDS"]
 
 #: systems up to this size are solved with dense LU by ``"auto"`` (measured:
 #: SuperLU wins from about 600 unknowns on, even for RK tangents with 200
@@ -85,12 +89,6 @@ PARDISO_LIMIT = 20000
 #: tangents (support 3), MMD is faster at 2e4 unknowns (2.0 s against 2.9 s),
 #: nested dissection at 3.4e4 (5.4 s against 6.2 s; docs/performance.md)
 ND_LIMIT = 30000
-
-#: ``"auto"`` takes UMFPACK (if installed) only above this size: measured on one
-#: core (docs/performance.md, "Linear solvers"), SuperLU and UMFPACK are even
-#: at 2e4 unknowns and UMFPACK pulls ahead above
-UMFPACK_LIMIT = 20000
-
 
 class DenseLU(Solver):
     """LAPACK LU with partial pivoting of the dense matrix."""
@@ -441,12 +439,12 @@ class Auto(Solver):
     * above ``PARDISO_LIMIT`` unknowns, PARDISO if installed;
     * otherwise, for symmetric matrices known to be positive definite
       (``spd=True``, as in :func:`solve_saddle_point`), CHOLMOD if installed;
-    * otherwise above ``UMFPACK_LIMIT`` unknowns UMFPACK (``cvxopt``) if
-      installed;
     * otherwise SuperLU.
 
     AMG is never picked: it is an iterative method whose cost depends on
-    the problem; ask for it by name.  Backends are kept between calls so
+    the problem; ask for it by name.  Nor is UMFPACK: it is no faster than
+    SuperLU with nested dissection on the RK tangents measured, and it did
+    not factor the 1e5-particle one in 300 s (docs/performance.md).  Backends are kept between calls so
     that each reuses its analysis.
     """
 
@@ -470,8 +468,6 @@ class Auto(Solver):
             sym = self.symmetric if self.symmetric is not None else is_symmetric(A)
             if sym:
                 return "cholmod"
-        if "umfpack" in self.installed and n > UMFPACK_LIMIT:
-            return "umfpack"
         return "superlu"
 
     def backend(self, name):

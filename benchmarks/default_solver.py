@@ -40,8 +40,11 @@ here directly.  ``--pythonpath`` adds a folder to the children's path (an
 extra installed with ``pip install --target``, e.g. pypardiso, so that it
 is measured without being installed in the environment).
 
-Run:  python benchmarks/default_solver.py --build              (~5 minutes, ~6 GB)
-      python benchmarks/default_solver.py                      (~20 minutes)
+Run:  python benchmarks/default_solver.py --build              (~3 minutes, 14 GB peak)
+      python benchmarks/default_solver.py                      (~40 minutes)
+      PYPARDISO_MKL_RT=/opt/pp/lib/libmkl_rt.so.3 python benchmarks/default_solver.py \
+          --backends pardiso --pythonpath /opt/pp/lib/python3.11/site-packages
+          (PARDISO installed aside with ``pip install --prefix /opt/pp pypardiso``)
 """
 
 import os

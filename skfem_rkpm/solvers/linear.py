@@ -24,8 +24,9 @@ Backends (``make_solver(name)``):
     of ``Aᵀ + A`` (``pymetis``, a default dependency) above ``ND_LIMIT``
     unknowns and its minimum-degree ordering below; COLAMD with partial
     pivoting if the residual is poor.  Always available; handles any
-    nonsingular matrix; factors the 1e5-particle RK tangent in 1.6× the time
-    of PARDISO (docs/performance.md).
+    nonsingular matrix; factors the 1e5-particle RK tangent in 1.5× the time
+    and 1.7× the memory of PARDISO, refactors it in 2.7× the time
+    (docs/performance.md).
 ``"pardiso"``
     MKL PARDISO through ``pypardiso`` (``pip install skfem-rkpm[pardiso]``,
     about 1 GB with MKL).  Any nonsingular matrix; analysis reused.
@@ -89,6 +90,7 @@ PARDISO_LIMIT = 20000
 #: tangents (support 3), MMD is faster at 2e4 unknowns (2.0 s against 2.9 s),
 #: nested dissection at 3.4e4 (5.4 s against 6.2 s; docs/performance.md)
 ND_LIMIT = 30000
+
 
 class DenseLU(Solver):
     """LAPACK LU with partial pivoting of the dense matrix."""

@@ -24,8 +24,8 @@ Backends (``make_solver(name)``):
     of ``Aᵀ + A`` (``pymetis``, a default dependency) above ``ND_LIMIT``
     unknowns and its minimum-degree ordering below; COLAMD with partial
     pivoting if the residual is poor.  Always available; handles any
-    nonsingular matrix; factors the 1e5-particle RK tangent in 1.5× the time
-    and 1.7× the memory of PARDISO, refactors it in 2.7× the time
+    nonsingular matrix; factors the 1e5-particle RK tangent in 1.5-2.0× the
+    time and 1.7× the memory of PARDISO, refactors it in 2.5-2.7× the time
     (docs/performance.md).
 ``"pardiso"``
     MKL PARDISO through ``pypardiso`` (``pip install skfem-rkpm[pardiso]``,

@@ -21,9 +21,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from timing import median_cpu  # noqa: E402
 import skfem  # noqa: E402
 from skfem import MeshHex, MeshQuad, asm  # noqa: E402
 from skfem.models.poisson import laplace, unit_load  # noqa: E402
@@ -31,22 +31,14 @@ from skfem.models.poisson import laplace, unit_load  # noqa: E402
 import skfem_rkpm  # noqa: E402
 
 
-def timed(fun, repeat):
-    times, out = [], None
-    for _ in range(repeat):
-        start = time.process_time()
-        out = fun()
-        times.append(time.process_time() - start)
-    return float(np.median(times)), out
-
 
 def case(mesh, repeat):
     basis = skfem_rkpm.RKBasis(mesh, integration="vci_symmetric")
     K, f, D = asm(laplace, basis), asm(unit_load, basis), basis.get_dofs()
-    t_condense, reduced = timed(lambda: skfem_rkpm.condense(K, f, D=D, basis=basis), repeat)
-    t_direct, d = timed(lambda: skfem.solve(*reduced), repeat)
-    t_saddle, ref = timed(lambda: skfem_rkpm.solve(K, f, basis, D=D), repeat)
-    t_cg, dcg = timed(lambda: skfem.solve(*reduced, solver=skfem.solver_iter_pcg(rtol=1e-10)),
+    t_condense, reduced = median_cpu(lambda: skfem_rkpm.condense(K, f, D=D, basis=basis), repeat)
+    t_direct, d = median_cpu(lambda: skfem.solve(*reduced), repeat)
+    t_saddle, ref = median_cpu(lambda: skfem_rkpm.solve(K, f, basis, D=D), repeat)
+    t_cg, dcg = median_cpu(lambda: skfem.solve(*reduced, solver=skfem.solver_iter_pcg(rtol=1e-10)),
                       repeat)
     scale = np.abs(ref).max()
     return dict(N=basis.N, D=len(D), nnzK=K.nnz, nnzA=reduced[0].nnz,

@@ -29,9 +29,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from timing import median_cpu  # noqa: E402
 import skfem  # noqa: E402
 from skfem import (Basis, ElementQuad1, LinearForm, MeshHex, MeshQuad, asm,  # noqa: E402
                    condense, solve)
@@ -116,14 +116,6 @@ def field_miss(basis, d):
                    - linear(np.asarray(basis.global_coordinates()))).max(),)
 
 
-def timed(fun, repeat):
-    times = []
-    for _ in range(repeat):
-        start = time.process_time()
-        fun()
-        times.append(time.process_time() - start)
-    return float(np.median(times))
-
 
 def accuracy(sizes):
     print("| mesh | n | standard L² | standard H¹ | interpolating L² | interpolating H¹ "
@@ -188,13 +180,14 @@ def build_cost(sizes, cubes, repeat):
     cases += [(f"cube {n}³, vector", MeshHex.init_tensor(*[np.linspace(0, 1, n + 1)] * 3),
                True) for n in cubes]
     for label, mesh, vector in cases:
-        std = timed(lambda: RKBasis(mesh, vector=vector), repeat)
-        itp = timed(lambda: RKBasis(mesh, vector=vector, interpolating=True), repeat)
+        std = median_cpu(lambda: RKBasis(mesh, vector=vector), repeat)[0]
+        itp = median_cpu(lambda: RKBasis(mesh, vector=vector, interpolating=True), repeat)[0]
         x = np.asarray(RKBasis(mesh, integration="gauss").global_coordinates())
         x = x.reshape(mesh.dim(), -1)
         radius = 2.0 * local_spacing(mesh)
-        t_std = timed(lambda: rk_shape_functions(x, mesh.p, radius, backend="numpy"), repeat)
-        t_itp = timed(lambda: interpolating_shape_functions(x, mesh.p, radius), repeat)
+        t_std = median_cpu(lambda: rk_shape_functions(x, mesh.p, radius, backend="numpy"),
+                           repeat)[0]
+        t_itp = median_cpu(lambda: interpolating_shape_functions(x, mesh.p, radius), repeat)[0]
         print(f"| {label} | {mesh.nvertices} | {std:.3f} | {itp:.3f} | {itp / std:.2f} "
               f"| {t_std:.3f} | {t_itp:.3f} | {t_itp / t_std:.2f} |")
 

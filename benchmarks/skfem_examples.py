@@ -15,9 +15,8 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import importlib.util  # noqa: E402
 import pathlib  # noqa: E402
-import time  # noqa: E402
 
-import numpy as np  # noqa: E402
+from timing import median_cpu  # noqa: E402
 from skfem import ElementQuad2  # noqa: E402
 
 _path = pathlib.Path(__file__).resolve().parents[1] / "tests" / "test_skfem_examples.py"
@@ -25,14 +24,6 @@ _spec = importlib.util.spec_from_file_location("skfem_examples", _path)
 ex = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(ex)
 
-
-def timed(fun, repeat):
-    times, out = [], None
-    for _ in range(repeat):
-        start = time.process_time()
-        out = fun()
-        times.append(time.process_time() - start)
-    return float(np.median(times)), out
 
 
 def cube(kind):
@@ -85,10 +76,10 @@ def main():
     print("|---|---|---|---|")
     for title, run, kinds in CASES:
         for label, kind in kinds:
-            seconds, result = timed(lambda: run(kind), args.repeat)
+            seconds, result = median_cpu(lambda: run(kind), args.repeat)
             print(f"| {title} | {label} ({kind}) | {seconds:.2f} | {result} |", flush=True)
         if run is heat:
-            seconds, result = timed(lambda: heat("fem", ElementQuad2()), args.repeat)
+            seconds, result = median_cpu(lambda: heat("fem", ElementQuad2()), args.repeat)
             print(f"| {title} | Q2 (fem) | {seconds:.2f} | {result} |", flush=True)
     print(f"\nload average {os.getloadavg()[0]:.1f}")
 

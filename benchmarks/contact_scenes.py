@@ -21,7 +21,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from whole_runs import history, run_scene
+from _whole_runs import history, run_scene
 
 
 def augmented(*tools, factor=10):

@@ -23,7 +23,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from whole_runs import history, run_scene
+from _whole_runs import history, run_scene
 
 CASES = {
     # name: (scene, method, settings)

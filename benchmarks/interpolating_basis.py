@@ -31,7 +31,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 
 import numpy as np  # noqa: E402
-from timing import median_cpu  # noqa: E402
+from _timing import median_cpu  # noqa: E402
 import skfem  # noqa: E402
 from skfem import (Basis, ElementQuad1, LinearForm, MeshHex, MeshQuad, asm,  # noqa: E402
                    condense, solve)

@@ -16,7 +16,7 @@ import argparse  # noqa: E402
 import importlib.util  # noqa: E402
 import pathlib  # noqa: E402
 
-from timing import median_cpu  # noqa: E402
+from _timing import median_cpu  # noqa: E402
 from skfem import ElementQuad2  # noqa: E402
 
 _path = pathlib.Path(__file__).resolve().parents[1] / "tests" / "test_skfem_examples.py"

@@ -1,5 +1,6 @@
 """Whole runs of ``skfem-rkpm run`` in fresh processes, for the benchmarks of
-whole scenes (``contact_scenes.py``, ``forming_3d.py``).
+whole scenes (``contact_scenes.py``, ``forming_3d.py``; the leading underscore keeps
+``run_all.py`` from running it as a benchmark).
 
 Each run is started by a small measuring process, so that the CPU time
 (user + system) and the peak memory (maximum resident set) reported are

@@ -109,6 +109,8 @@ class NodalElimination:
 
     Attributes
     ----------
+    C : sparse matrix, shape (len(D), N)
+        The conditions' rows ``Λᵀ[D]``.
     Z : sparse matrix, shape (N, len(I))
         ``Z = [1 ; -C_D⁻¹ C_I]`` (rows ``I`` the identity), ``Λᵀ[D] Z = 0``.
     """
@@ -117,7 +119,7 @@ class NodalElimination:
         T = transformation(basis, N)
         N = T.shape[0]
         self.N, self.I, self.D = N, I, D
-        C = T[D]
+        self.C = C = T[D]
         C_D = C[:, D].tocsc()
         C_I = C[:, I].tocsc()
         near = np.flatnonzero(np.diff(C_I.indptr))
@@ -253,8 +255,7 @@ def enforce(A, b=None, x=None, I=None, D=None, diag=1.0, overwrite=False, basis=
     elim = NodalElimination(basis, I, D, N)
     rows = sp.csr_matrix((np.ones(N), (np.concatenate([I, D]), np.arange(N))),
                          shape=(N, N))
-    C = transformation(basis, N)[D]
-    A_e = (rows @ sp.vstack([elim.Z.T @ sp.csr_matrix(A), diag * C])).tocsr()
+    A_e = (rows @ sp.vstack([elim.Z.T @ sp.csr_matrix(A), diag * elim.C])).tocsr()
     if b is None:
         return A_e
     if sp.issparse(b):

@@ -136,7 +136,7 @@ def assemble(form, ubasis, vbasis=None, **kwargs):
                 return result
             reason = result
         _warn_slow(reason, ubasis, vbasis)
-        return form.assemble(ubasis, vbasis, **kwargs)
+        return _pairwise_loop(form, ubasis, vbasis, **kwargs)
     if isinstance(form, LinearForm):
         if vbasis is not None:
             raise ValueError("a LinearForm takes one basis")
@@ -147,12 +147,20 @@ def assemble(form, ubasis, vbasis=None, **kwargs):
                 return result
             reason = result
         _warn_slow(reason, ubasis)
-        return form.assemble(ubasis, **kwargs)
+        return _pairwise_loop(form, ubasis, **kwargs)
     if isinstance(form, Functional):  # one call of the form: nothing to gain
         return form.assemble(ubasis, **kwargs)
     if any(_is_rk(b) for b in (ubasis, vbasis)):
         _warn_slow(f"{type(form).__name__} has no fast path", ubasis, vbasis)
-    return form.assemble(ubasis, *(() if vbasis is None else (vbasis,)), **kwargs)
+    return _pairwise_loop(form, ubasis, *(() if vbasis is None else (vbasis,)), **kwargs)
+
+
+def _pairwise_loop(form, *bases, **kwargs):
+    """scikit-fem's own loop, once :func:`_warn_slow` has said why (the
+    warning of ``RKBasis.basis`` would only repeat it)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "scikit-fem's loop over local", SlowAssemblyWarning)
+        return form.assemble(*bases, **kwargs)
 
 
 def _warn_slow(reason, *bases):

@@ -14,16 +14,18 @@ values: use :meth:`RKBasis.nodal_values` (Eq. 3.32) to read nodal values and
 """
 
 import copy
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
 from skfem.assembly.basis import AbstractBasis
-from skfem.element import DiscreteField
+from skfem.element import DiscreteField, Element, ElementH1, ElementVector
 
 from . import cell_layout
 from .basis_views import CellViews, FacetViews
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
+from ..forms import SlowAssemblyWarning
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
 from .interpolating import basis_primitive_radius, shape_functions
@@ -33,6 +35,53 @@ __all__ = ["RKBasis", "RKFacetBasis"]
 
 INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss") + NODAL_SCHEMES
 
+
+
+def pairwise_loop_message(basis):
+    """What scikit-fem's loop over local functions does on ``basis``
+    and the call that does it right and fast."""
+    text = ("scikit-fem's loop over local functions (form.assemble(basis), skfem.asm) "
+            "reads RKBasis.basis: on an RK basis it is 100-1000 times slower than "
+            "skfem_rkpm.asm, which has skfem.asm's signature (from skfem_rkpm import asm)")
+    if getattr(basis, "trial", basis) is not basis:
+        text += (". With integration='vci' the local functions carry the corrected "
+                 "*test* gradients; a bilinear form that reads trial gradients gets them "
+                 "on the trial side too, which is not the consistent matrix (the patch "
+                 "test fails): assemble with skfem_rkpm.asm(form, basis.trial, basis), "
+                 "or build RKBasis(..., integration='vci_symmetric')")
+    return text
+
+
+def field_is_vector(vector):
+    """``vector`` of :class:`RKBasis` as a bool: given as a bool, or read
+    from a scikit-fem element (``ElementVector`` of a continuous element,
+    or a continuous scalar element)."""
+    if isinstance(vector, (bool, np.bool_)):
+        return bool(vector)
+    element = vector.elem if isinstance(vector, ElementVector) else vector
+    if isinstance(element, ElementH1) and element.maxdeg >= 1:
+        return isinstance(vector, ElementVector)
+    if isinstance(element, Element):
+        raise ValueError(
+            f"an RK basis is continuous, one field with values and gradients: it has "
+            f"no counterpart of {type(element).__name__}; pair the RK basis with a FEM "
+            f"basis on the same points, rk.with_element({type(element).__name__}())")
+    raise ValueError(f"the second argument of RKBasis is vector=True/False or a scikit-fem "
+                     f"element (ElementTriP1(), ElementVector(ElementQuad1()), ...), not "
+                     f"{vector!r}")
+
+
+def default_integration(interpolating, order, axisymmetric):
+    """``"vci_symmetric"`` where it is defined (order 1, not axisymmetric)
+    for an interpolating basis, whose users read coefficients as nodal
+    values with scikit-fem's own idioms, which take one basis for trial and
+    test (``form.assemble(basis)``, conjugate gradients, ``eigsh``); it
+    costs no accuracy there (Poisson on 8²-64² squares, uniform and
+    distorted: L² and H¹ errors within 1 % of ``"vci"``,
+    docs/rk_basis.md).  ``"vci"`` otherwise."""
+    if interpolating and order == 1 and not axisymmetric:
+        return "vci_symmetric"
+    return "vci"
 
 class _RKBase(AbstractBasis):
     """What cell and facet RK bases share: dofs, local functions, fields."""
@@ -89,7 +138,20 @@ class _RKBase(AbstractBasis):
     # -- local functions for scikit-fem forms -----------------------------
     @property
     def basis(self):
-        """Per local function a tuple ``(DiscreteField,)`` as in scikit-fem."""
+        """Per local function a tuple ``(DiscreteField,)`` as in scikit-fem,
+        read by scikit-fem's loop over local functions
+        (``form.assemble(basis)``, ``skfem.asm``): warns with
+        :class:`~skfem_rkpm.forms.SlowAssemblyWarning` that names the fast
+        call (see :func:`pairwise_loop_message`), once per basis.  Without
+        the warning: :attr:`local_fields`."""
+        if not getattr(self, "_loop_warned", False):
+            self._loop_warned = True
+            warnings.warn(pairwise_loop_message(self), SlowAssemblyWarning, stacklevel=2)
+        return self.local_fields
+
+    @property
+    def local_fields(self):
+        """Per local function a tuple ``(DiscreteField,)`` (test gradients)."""
         if getattr(self, "_basis", None) is None:
             self._basis = self._local_functions(self.values, self.grads)
         return self._basis
@@ -191,8 +253,12 @@ class RKBasis(CellViews, _RKBase):
     mesh : skfem.Mesh
         Background mesh; its cells supply quadrature, its vertices are the
         particles unless ``nodes`` is given.
-    vector : bool
-        Vector field with ``mesh.dim()`` components (displacements).
+    vector : bool or skfem element
+        Vector field with ``mesh.dim()`` components (displacements).  A
+        scikit-fem element may stand here, as in ``Basis(mesh, element)``:
+        ``ElementVector(...)`` gives a vector field, a scalar element a
+        scalar one (the element's polynomial degree is not used; the RK
+        basis order is ``order``).
     support : float
         Normalized support ``c``: particle I gets radius ``a_I = c h_I``
         with ``h_I`` the local nodal spacing (:func:`local_spacing`).
@@ -205,6 +271,8 @@ class RKBasis(CellViews, _RKBase):
     intorder : int
         Degree of the Gauss rule on each background cell.
     integration : {"vci", "vci_symmetric", "gauss", "scni", "dni"}
+        Default ``"vci"``, and ``"vci_symmetric"`` for an interpolating
+        basis of order 1 that is not axisymmetric (:func:`default_integration`).
         ``"gauss"``: plain Gauss quadrature, the paper's scheme.
         ``"vci"``: variationally consistent test-function gradients (see
         :mod:`skfem_rkpm.approximation.integration`); ``basis.basis`` then holds the
@@ -246,9 +314,12 @@ class RKBasis(CellViews, _RKBase):
     """
 
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
-                 support_shape="radial", intorder=4, integration="vci",
+                 support_shape="radial", intorder=4, integration=None,
                  nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
                  elements=None, interpolating=False):
+        vector = field_is_vector(vector)
+        if integration is None:
+            integration = default_integration(interpolating, order, axisymmetric)
         if integration not in INTEGRATION_SCHEMES:
             raise ValueError(f"integration must be one of {INTEGRATION_SCHEMES}, "
                              f"not {integration!r}")

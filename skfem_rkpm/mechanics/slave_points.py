@@ -150,7 +150,8 @@ def _scalar_value_matrix(fb):
     """Sparse (facet quadrature points × scalar dofs) values of a FacetBasis."""
     nq = fb.X.shape[-1]
     rows = np.arange(fb.nelems * nq).reshape(fb.nelems, nq)
-    data = [np.asarray(fb.basis[i][0]).ravel() for i in range(fb.Nbfun)]
+    fields = getattr(fb, "local_fields", None) or fb.basis  # RK: without the loop warning
+    data = [np.asarray(fields[i][0]).ravel() for i in range(fb.Nbfun)]
     cols = [np.repeat(fb.element_dofs[i], nq) for i in range(fb.Nbfun)]
     return sp.csr_matrix((np.concatenate(data),
                           (np.tile(rows.ravel(), fb.Nbfun), np.concatenate(cols))),

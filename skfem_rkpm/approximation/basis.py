@@ -36,13 +36,14 @@ __all__ = ["RKBasis", "RKFacetBasis"]
 INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss") + NODAL_SCHEMES
 
 
-
 def pairwise_loop_message(basis):
     """What scikit-fem's loop over local functions does on ``basis``
     and the call that does it right and fast."""
     text = ("scikit-fem's loop over local functions (form.assemble(basis), skfem.asm) "
             "reads RKBasis.basis: on an RK basis it is 100-1000 times slower than "
-            "skfem_rkpm.asm, which has skfem.asm's signature (from skfem_rkpm import asm)")
+            "skfem_rkpm.asm, which has skfem.asm's signature (from skfem_rkpm import asm; "
+            "for a composite basis rk * fem, assemble its blocks with it and join them "
+            "with scipy.sparse.bmat)")
     if getattr(basis, "trial", basis) is not basis:
         text += (". With integration='vci' the local functions carry the corrected "
                  "*test* gradients; a bilinear form that reads trial gradients gets them "
@@ -82,6 +83,7 @@ def default_integration(interpolating, order, axisymmetric):
     if interpolating and order == 1 and not axisymmetric:
         return "vci_symmetric"
     return "vci"
+
 
 class _RKBase(AbstractBasis):
     """What cell and facet RK bases share: dofs, local functions, fields."""

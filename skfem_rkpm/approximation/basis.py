@@ -27,7 +27,8 @@ from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from ..forms import SlowAssemblyWarning
 from ..meshes import local_spacing, mesh_vertices
-from .nodal_integration import NODAL_SCHEMES, boundary_rule, nodal_quadrature
+from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
+                               nodal_quadrature)
 from .interpolating import basis_primitive_radius, shape_functions
 from .shape import coordinates
 
@@ -307,6 +308,11 @@ class RKBasis(CellViews, _RKBase):
         solid adds ``α Σ_k A_k (B_k - B_L)ᵀ C (B_k - B_L)`` with the piece
         gradients of the smoothing cells and the elastic moduli ``C``
         (:class:`skfem_rkpm.mechanics.problem.SolidProblem`).  0 for plain SCNI.
+    smoothing : {"median_dual", "voronoi"}
+        The smoothing cells of ``"scni"`` (and the weights of ``"dni"``):
+        the median dual cells of the mesh (2D and 3D), or the Voronoi cells
+        of the particles clipped to the mesh (2D;
+        :mod:`skfem_rkpm.approximation.voronoi_cells`).
     elements : optional
         Integrate over these cells only (scikit-fem's ``elements=``), the
         same as ``RKBasis(mesh, ...).with_elements(elements)``.
@@ -318,7 +324,7 @@ class RKBasis(CellViews, _RKBase):
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
                  support_shape="radial", intorder=4, integration=None,
                  nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
-                 elements=None, interpolating=False):
+                 elements=None, interpolating=False, smoothing="median_dual"):
         vector = field_is_vector(vector)
         if integration is None:
             integration = default_integration(interpolating, order, axisymmetric)
@@ -339,6 +345,12 @@ class RKBasis(CellViews, _RKBase):
                 stabilization, (int, float, np.integer, np.floating)) or not (
                 np.isfinite(stabilization) and stabilization >= 0):
             raise ValueError(f"stabilization must be a number >= 0, not {stabilization!r}")
+        if smoothing not in SMOOTHING_CELLS:
+            raise ValueError(f"smoothing must be one of {SMOOTHING_CELLS}, not {smoothing!r}")
+        if smoothing != "median_dual" and integration not in NODAL_SCHEMES:
+            raise ValueError(f"smoothing={smoothing!r} chooses the cells of nodal "
+                             f"integration: it needs integration='scni' or 'dni' "
+                             f"(not {integration!r})")
         if stabilization and integration != "scni":
             raise ValueError(f"stabilization={stabilization} needs integration='scni' "
                              f"(not {integration!r})")
@@ -385,6 +397,7 @@ class RKBasis(CellViews, _RKBase):
         self.integration = integration
         self.axisymmetric = axisymmetric
         self.stabilization = float(stabilization)
+        self.smoothing = smoothing
         self.nodal_quadrature = None
         if integration in NODAL_SCHEMES:
             self._setup_nodal(mesh, nodes, vector)
@@ -441,7 +454,7 @@ class RKBasis(CellViews, _RKBase):
         q = nodal_quadrature(mesh, self.integration,
                              lambda x: self._shape_table(x, nodes, gradients=False), ntable,
                              self.segment_points, self.axisymmetric,
-                             pieces=bool(self.stabilization))
+                             pieces=bool(self.stabilization), smoothing=self.smoothing)
         self.nodal_quadrature = q
         self._setup(mesh, q.geometry, q.table, q.table.grads, nodes, vector)
 

@@ -60,6 +60,7 @@ from skfem.element import DiscreteField
 
 from .basis_views import linear_mesh_class
 from .median_dual_3d import composite_facet_rule, median_dual_3d, mesh_kind
+from .voronoi_cells import voronoi_cells
 from .shape import ShapeTable
 
 __all__ = ["NODAL_SCHEMES", "SmoothingCells", "smoothing_cells", "boundary_rule",
@@ -67,6 +68,8 @@ __all__ = ["NODAL_SCHEMES", "SmoothingCells", "smoothing_cells", "boundary_rule"
            "nodal_quadrature", "stabilization_matrix"]
 
 NODAL_SCHEMES = ("scni", "dni")
+#: the smoothing cells SCNI can use (:func:`smoothing_cells`)
+SMOOTHING_CELLS = ("median_dual", "voronoi")
 
 
 def boundary_rule(npoints, mesh=None):
@@ -205,9 +208,10 @@ class SmoothingCells:
         return x, jac * w
 
 
-def smoothing_cells(mesh, npoints=2):
+def smoothing_cells(mesh, npoints=2, kind="median_dual"):
     """The median dual cells of a triangle, quadrilateral, tetrahedron or
-    hexahedron mesh.
+    hexahedron mesh, or the Voronoi cells of its vertices clipped to a
+    triangle or quadrilateral mesh (``kind="voronoi"``, :mod:`.voronoi_cells`).
 
     Parameters
     ----------
@@ -216,6 +220,7 @@ def smoothing_cells(mesh, npoints=2):
     npoints : int
         Gauss points on every segment (half edge or spoke); in 3D it selects
         the rule on every triangle (:func:`~.median_dual_3d.triangle_rule`).
+    kind : {"median_dual", "voronoi"}
 
     Raises
     ------
@@ -223,6 +228,16 @@ def smoothing_cells(mesh, npoints=2):
         For other cells, for cells of zero area (volume) and, in 3D, for
         pieces of non-positive volume (names the cell).
     """
+    if kind not in SMOOTHING_CELLS:
+        raise ValueError(f"smoothing cells are one of {SMOOTHING_CELLS}, not {kind!r}")
+    if kind == "voronoi":
+        d = voronoi_cells(mesh)
+        ends = d["ends"]
+        tq, wq = _gauss01(npoints)
+        delta = ends[:, 1] - ends[:, 0]
+        return SmoothingCells(d["owner"], d["corners"], d["area"],
+                              ends[:, 0, :, None] + delta[:, :, None] * tq, wq, ends,
+                              d["incidence"], mesh.nvertices, np.stack([delta[1], -delta[0]]))
     if mesh.dim() == 3:
         d = median_dual_3d(mesh, npoints)
         return SmoothingCells(d["owner"], d["corners"], d["volume"], d["points"],
@@ -421,7 +436,7 @@ class NodalQuadrature:
 
 
 def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=False,
-                     pieces=True):
+                     pieces=True, smoothing="median_dual"):
     """Nodal quadrature of an RK basis whose particles are the mesh vertices.
 
     Parameters
@@ -441,6 +456,8 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
         them (and not axisymmetric) the shape functions are evaluated on the
         boundaries of the whole smoothing cells only
         (:meth:`SmoothingCells.merged`), and ``jumps`` is None.
+    smoothing : {"median_dual", "voronoi"}
+        The smoothing cells (:func:`smoothing_cells`).
 
     Returns
     -------
@@ -455,7 +472,7 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
             f"{linear_mesh_class(mesh).__name__}(mesh.p[:, :mesh.nvertices], mesh.t), "
             "or use a cell scheme "
             "(integration='vci'), which integrates over the curved cells")
-    cells = smoothing_cells(mesh, npoints)
+    cells = smoothing_cells(mesh, npoints, smoothing)
     nnodes = mesh.nvertices
     area = cells.cell_area
     if scheme == "dni":

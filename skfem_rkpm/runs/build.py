@@ -119,6 +119,9 @@ def build(scene, method=None, trust_geo=False):
         if stabilization is not None and disc["integration"] != "scni":
             raise SceneError(f"discretization.stabilization: only for integration = "
                              f"\"scni\" (this scene has {disc['integration']!r})")
+        if disc["smoothing"] != "median_dual" and disc["integration"] not in ("scni", "dni"):
+            raise SceneError(f"discretization.smoothing: only for integration = \"scni\" or "
+                             f"\"dni\" (this scene has {disc['integration']!r})")
         if disc["integration"] == "scni" and stabilization is None:
             stabilization = DEFAULT_STABILIZATION
         basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
@@ -127,7 +130,7 @@ def build(scene, method=None, trust_geo=False):
                         radius=(spacing_radius(mesh, disc)
                                 if disc["support"] is not None else None),
                         support=disc["dilation"], stabilization=stabilization or 0.0,
-                        interpolating=disc["interpolating"])
+                        interpolating=disc["interpolating"], smoothing=disc["smoothing"])
     else:
         element = ELEMENTS[disc["element"] or LINEAR_OF.get(type(mesh).__name__, "quad1")]()
         if element.refdom != mesh.refdom:

@@ -102,6 +102,10 @@ SCHEMA = {
         "interpolating": Key("bool", False,
                              doc="rkpm: interpolating RK functions, Ψ_I(X_J) = δ_IJ: the "
                                  "coefficients are nodal values (see docs/rk_basis.md)"),
+        "smoothing": Key("str", "median_dual", choices=("median_dual", "voronoi"),
+                         doc="rkpm, scni/dni: the smoothing cells, the median dual cells "
+                             "of the mesh or the Voronoi cells of the particles clipped to "
+                             "it (2D)"),
         "stabilization": Key("float", check=_non_negative,
                              doc="rkpm, scni: α of the modified SCNI stabilization "
                                  f"(default {DEFAULT_STABILIZATION}; 0: plain SCNI)"),

@@ -180,7 +180,8 @@ def voronoi_cells(mesh):
         clipped, counts[rows] = clip_by_bisectors(polygons[rows, :width], counts[rows],
                                                   points[particle[rows]], points[other[rows]])
         polygons[rows, :width + 1] = clipped
-    grid = SNAP * np.ptp(p, axis=1).max()
+    # far from the origin the grid is at least a few units in the last place
+    grid = max(SNAP * np.ptp(p, axis=1).max(), 64 * np.spacing(np.abs(p).max()))
     area = _polygon_areas(polygons, counts)
     floor = TINY_PIECE * np.abs(_polygon_areas(corners.transpose(2, 1, 0), np.full(
         corners.shape[2], 3)))

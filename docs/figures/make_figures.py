@@ -210,6 +210,27 @@ def particles_and_quadrature():
     save(fig, "particles_and_quadrature.png")
 
 
+def smoothing_cells_figure():
+    """Median dual and Voronoi smoothing cells of SCNI on one distorted mesh."""
+    from skfem_rkpm.approximation.nodal_integration import smoothing_cells
+
+    mesh = rectangle(1.0, 1.0, 6, 6, perturb=0.3)
+    fig, ax = plt.subplots(1, 2, figsize=(11, 5.4), constrained_layout=True)
+    for a, kind, title in zip(ax, ("median_dual", "voronoi"),
+                              ("median dual cells (smoothing='median_dual')",
+                               "Voronoi cells clipped to the mesh (smoothing='voronoi')")):
+        cells = smoothing_cells(mesh, 2, kind).merged()
+        draw(mesh, ax=a, color="0.75", linewidth=0.6)
+        ends = cells.segment_ends
+        a.plot(ends[0], ends[1], "-", color="tab:blue", lw=1.2)
+        a.plot(*mesh.p, "o", color="tab:red", ms=3, label="particles (mesh vertices)")
+        a.plot([], [], "-", color="tab:blue", label="smoothing cell boundaries")
+        a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8, ncol=2)
+        a.set(title=title, xlabel="x [m]", ylabel="y [m]", aspect="equal")
+        a.grid(False)
+    save(fig, "smoothing_cells.png")
+
+
 # ---------------------------------------------------------------------------
 # linear patch test: Gauss vs VCI on a distorted mesh
 # ---------------------------------------------------------------------------
@@ -484,7 +505,7 @@ FIGURES = {
     "shape1d": shape_functions_1d, "consistency": consistency_1d,
     "shape2d": shape_functions_2d, "particles": particles_and_quadrature,
     "patch": patch_test, "beam": beam, "hole": hole, "perturbed": perturbed,
-    "dirichlet": dirichlet,
+    "dirichlet": dirichlet, "smoothing": smoothing_cells_figure,
 }
 
 

@@ -15,10 +15,11 @@ displacement, so it enters Newton as a contribution with its tangent.
 from dataclasses import dataclass
 
 import numpy as np
-from skfem import BilinearForm, LinearForm, asm
+from skfem import BilinearForm, LinearForm
 from skfem.helpers import dot
 
 from ..assembly import facet_basis
+from ..forms import asm
 
 __all__ = ["History", "Traction", "Pressure", "BoundaryLoads", "FollowerPressure"]
 

@@ -9,10 +9,11 @@ comparison example and the benchmarks.
 """
 
 import numpy as np
-from skfem import BilinearForm, LinearForm, asm
+from skfem import BilinearForm, LinearForm
 from skfem.helpers import dot, sym_grad, trace
 
 from ..assembly import Assembler, facet_basis, isotropic_tangent
+from ..forms import asm
 from ..solvers.constrained import solve
 
 __all__ = ["lame", "stress_from_voigt", "nitsche_terms",

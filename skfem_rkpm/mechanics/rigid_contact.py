@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from .friction import (DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR,
                        DEFAULT_TANGENTIAL_FACTOR, ContactState,
                        _positive, coulomb, default_penalty, friction_coefficient)
+from .contact_status import StatusFreeze
 from .problem import NonFiniteError
 from .slave_points import slave_points
 from .tools import Tool
@@ -289,6 +290,7 @@ class RigidContact:
                         else _positive(tangential_penalty, "tangential penalty"))
         self.tolerance = _positive(tolerance, "augmented Lagrangian tolerance")
         self._coupling = _PointCoupling(self.points)
+        self._freeze = StatusFreeze(self.points.m, enabled=enforcement == "augmented")
         self.state = self.trial = self._initial_state()
         self.restart()
         self._check_start()
@@ -322,15 +324,23 @@ class RigidContact:
         pts, state = self.points, self.state
         node_gap = pts.average(proj.gap)
         pressed = node_gap - self.multipliers[0] / self.omega_n  # Eq. 4.5 around λ_n
-        active = pressed <= 0.0
-        pressure = self.omega_n * np.maximum(-pressed, 0.0)
+        active, pressure = self._normal_law(pressed)
         slip_t = pts.average(np.einsum("ni,ni->n", slipped, proj.tangent.T))
         phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
-        shear, slip = coulomb(pressure, self.multipliers[1] - self.omega_t * phi * slip_t,
-                              self.mu)
+        shear, slip = self._freeze.release(*coulomb(
+            pressure, self.multipliers[1] - self.omega_t * phi * slip_t, self.mu))
         law = (pressure, np.where(active, shear, 0.0), slip & active, active, slip_t, phi,
                dphi)
         return node_gap, law
+
+    def _normal_law(self, pressed):
+        """Contact mask and pressure ``t_n = ω_n ⟨-(ĝ - λ_n/ω_n)⟩`` (Eq. 4.5)
+        from ``pressed = ĝ - λ_n/ω_n``; a node frozen closed
+        (:class:`~skfem_rkpm.mechanics.contact_status.StatusFreeze`) is held
+        bilaterally, ``t_n = -ω_n pressed`` of either sign, one frozen open
+        carries nothing."""
+        active = self._freeze.apply(pressed <= 0.0)
+        return active, self.omega_n * np.where(active, -pressed, 0.0)
 
     def evaluate(self, d, t):
         """Contact force (added to the internal force) and its tangent at
@@ -369,14 +379,16 @@ class RigidContact:
         boolean mask of the touching nodes) or ``None`` if no node is
         predicted to touch.
         """
-        apart = ~self.trial.active
+        apart = ~self.trial.active & ~self._freeze.held
         if not apart.any():
+            self._freeze.predict(apart)
             return None
         pts = self.points
         normal_rows = _directional(pts.G, self._normals)
         rows = (pts.weighted_hats @ normal_rows) / pts.node_weights[:, None]
         pressed = self.trial.node_gap - self.multipliers[0] / self.omega_n
         touching = apart & (pressed + rows @ delta < 0.0)
+        self._freeze.predict(touching)
         if not touching.any():
             return None
         scale = self.omega_n * pts.node_weights * touching
@@ -393,18 +405,49 @@ class RigidContact:
     def restart(self):
         """Multipliers ``(λ_n, λ_t)`` of the step from the converged state:
         ``λ_t = t_t,n`` (Eq. 4.6); ``λ_n = t_n`` for the augmented Lagrangian
-        (a warm start), 0 for the penalty law.  Forgets the augmentations of
-        an attempt that failed."""
+        (a warm start), 0 for the penalty law.  Forgets the augmentations and
+        frozen statuses of an attempt that failed."""
         state = self.state
-        normal = state.pressure if self.enforcement == "augmented" else 0.0 * state.pressure
+        normal = (np.maximum(state.pressure, 0.0) if self.enforcement == "augmented"
+                  else 0.0 * state.pressure)  # a frozen node's tension is not carried on
         self.multipliers = (normal.copy(), state.shear.copy())
+        self._freeze.reset()
+
+    def watch_status(self):
+        """At an accepted Newton iterate (the last evaluation): freeze the
+        contact status of grazing nodes, those that flipped between open
+        and closed and back, or that :meth:`touching` predicted in contact
+        three iterations in a row without the iterate reaching the tool
+        (augmented Lagrangian only; :mod:`.contact_status`).  Returns the
+        number of nodes newly frozen; the last evaluation is then stale."""
+        return self._freeze.observe(self.trial.active)
+
+    def review_status(self):
+        """After a converged solve whose multipliers need no update:
+        correct frozen statuses that contradict Eq. (4.5), a frozen-closed
+        node pulled by a tension above ``ω_n · tolerance · h_c`` (the
+        pressure of a penetration at the tolerance) is opened (its ``λ_n``
+        set to 0), a frozen-open node penetrating more than ``tolerance ·
+        h_c`` (closed it pulled, open it penetrates) slides without
+        friction for the rest of the attempt (:meth:`gauges` reports these
+        nodes).  Returns the number of nodes changed (the step is then solved
+        again)."""
+        gap_tolerance = self.tolerance * self.points.spacing
+        corrected = self._freeze.review(self.trial.node_gap, self.trial.pressure,
+                                        gap_tolerance, self.omega_n * gap_tolerance)
+        self.multipliers[0][corrected] = 0.0
+        return int(np.count_nonzero(corrected))
+
+    def frozen(self):
+        """Number of contact nodes whose status is frozen in this attempt."""
+        return self._freeze.count
 
     def violation(self):
         """Largest penetration of a pressed node, and slip of a sticking node
         since the last converged step (or since it touched), at the last evaluation, over
         ``tolerance · h_c`` (the augmented Lagrangian has converged when ≤ 1)."""
         trial = self.trial
-        penetration = np.maximum(-trial.node_gap, 0.0)[trial.active].max(initial=0.0)
+        penetration = self._misfit(trial)
         slip = 0.0
         if self.mu > 0:
             sticking = trial.active & ~trial.slip
@@ -413,6 +456,13 @@ class RigidContact:
             phi, _ = _touch_fraction(trial.node_gap, self.state.node_gap, self.state.active)
             slip = np.abs(phi * slip_t)[sticking].max(initial=0.0)
         return max(penetration, slip) / (self.tolerance * self.points.spacing)
+
+    def _misfit(self, trial):
+        """Largest penetration of a pressed node; a node frozen closed is
+        held on the tool, so its gap counts either way."""
+        misfit = np.where(self._freeze.closed, np.abs(trial.node_gap),
+                          np.maximum(-trial.node_gap, 0.0))
+        return misfit[trial.active].max(initial=0.0)
 
     def augment(self):
         """One Uzawa update of the augmented Lagrangian after a converged
@@ -445,6 +495,13 @@ class RigidContact:
         dx = getattr(self.tool, "displacement", self.tool.translation)(t)
         out = {f"{self.name} d{c}": float(v) for c, v in zip("xyz", dx)}
         out[f"{self.name} penetration"] = self.penetration()
+        if self.enforcement == "augmented":
+            # only a node held closed by the freeze can pull; only one released
+            # by it slides under μ = ∞
+            state = self.state
+            out[f"{self.name} tension"] = float(max(-state.pressure.min(initial=0.0), 0.0))
+            if self.mu == np.inf:
+                out[f"{self.name} sliding"] = int(np.count_nonzero(state.slip & state.active))
         return out
 
     def get_state(self):

@@ -163,12 +163,11 @@ class SurfaceContact(RigidContact):
         pts, state = self.points, self.state
         node_gap = pts.average(proj.gap)
         pressed = node_gap - self.multipliers[0] / self.omega_n
-        active = pressed <= 0.0
-        pressure = self.omega_n * np.maximum(-pressed, 0.0)
+        active, pressure = self._normal_law(pressed)
         mean_slip = self._mean_slip(proj.normal.T, slipped)
         phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
         trial = self.multipliers[1] - (self.omega_t * phi)[:, None] * mean_slip
-        shear, slip = coulomb_vector(pressure, trial, self.mu)
+        shear, slip = self._freeze.release(*coulomb_vector(pressure, trial, self.mu))
         law = (pressure, np.where(active[:, None], shear, 0.0), slip & active, active,
                trial, mean_slip, phi, dphi)
         return node_gap, law
@@ -203,7 +202,7 @@ class SurfaceContact(RigidContact):
         since the last converged step (or since it touched), at the last
         evaluation, over ``tolerance · h_c`` (converged when ≤ 1)."""
         trial = self.trial
-        penetration = np.maximum(-trial.node_gap, 0.0)[trial.active].max(initial=0.0)
+        penetration = self._misfit(trial)
         slip = 0.0
         if self.mu > 0:
             sticking = trial.active & ~trial.slip

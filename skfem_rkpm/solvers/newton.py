@@ -343,11 +343,14 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
                       contributions, linear_solver, tally, max_augmentations):
     """Newton solves of one step, each followed by an update of the
     multipliers of the contributions with ``augment()`` (Uzawa), until none
-    needs one; ``iterations`` and the residual history count all solves."""
+    needs one and none has a frozen contact status to correct
+    (``review_status()``, see :mod:`skfem_rkpm.mechanics.contact_status`);
+    ``iterations`` and the residual history count all solves."""
     for c in contributions:
         if hasattr(c, "restart"):
             c.restart()
     augmenting = [c for c in contributions if hasattr(c, "augment")]
+    reviewing = [c for c in contributions if hasattr(c, "review_status")]
     its = 0
     residuals, energies = [], []
     for update in range(max_augmentations + 1):
@@ -356,9 +359,13 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
                                          linear_solver, tally)
         its, residuals, energies = its + k, residuals + res, energies + en
         worst = max((c.violation() for c in augmenting), default=0.0)
-        if not any([c.augment() for c in augmenting]):
+        if any([c.augment() for c in augmenting]):
+            log(f"    augmentation {update + 1}: violation {worst:.3g} x tolerance")
+            continue
+        corrected = sum(c.review_status() for c in reviewing)
+        if not corrected:
             return d, ev, lam, its, residuals, energies
-        log(f"    augmentation {update + 1}: violation {worst:.3g} x tolerance")
+        log(f"    {corrected} frozen contact statuses corrected, solving again")
     raise NonConvergence(f"the augmented Lagrangian needs more than {max_augmentations} "
                          f"multiplier updates")
 
@@ -419,6 +426,8 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
         else:  # meets the prescribed values, or a correction at round-off
             step, trial = 1.0, state(d + delta)
         d, current = d + step * delta, trial
+        if _watch_status(contributions, log):
+            current = state(d)  # the frozen statuses change the contact law
         rel = current[3]
         residuals.append(rel)
         log(f"    iteration {it}: residual {rel:.3e}, energy {energies[-1]:.3e}"
@@ -431,6 +440,16 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
             raise NonConvergence(f"residual diverges ({rel:.3e})")
     raise NonConvergence(f"no convergence in {max_iterations} iterations "
                          f"(residual {residuals[-1]:.3e})")
+
+
+def _watch_status(contributions, log):
+    """Let the contributions with ``watch_status()`` freeze the contact
+    status of grazing nodes at the accepted iterate (their last
+    evaluation); returns the number of nodes newly frozen."""
+    frozen = sum(c.watch_status() for c in contributions if hasattr(c, "watch_status"))
+    if frozen:
+        log(f"    {frozen} grazing contact nodes frozen closed")
+    return frozen
 
 
 def _update(K, r, C, gap, linear_solver, contributions, rounds=4):

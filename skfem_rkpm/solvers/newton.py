@@ -359,13 +359,14 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
                                          linear_solver, tally)
         its, residuals, energies = its + k, residuals + res, energies + en
         worst = max((c.violation() for c in augmenting), default=0.0)
-        if any([c.augment() for c in augmenting]):
-            log(f"    augmentation {update + 1}: violation {worst:.3g} x tolerance")
-            continue
+        augmented = any([c.augment() for c in augmenting])
         corrected = sum(c.review_status() for c in reviewing)
-        if not corrected:
+        if not augmented and not corrected:
             return d, ev, lam, its, residuals, energies
-        log(f"    {corrected} frozen contact statuses corrected, solving again")
+        if augmented:
+            log(f"    augmentation {update + 1}: violation {worst:.3g} x tolerance")
+        if corrected:
+            log(f"    {corrected} frozen contact statuses corrected, solving again")
     raise NonConvergence(f"the augmented Lagrangian needs more than {max_augmentations} "
                          f"multiplier updates")
 

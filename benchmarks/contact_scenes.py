@@ -43,6 +43,18 @@ CASES = {
     "ring mu=0.15 fem augmented": ("ring", "fem", augmented("platen")),
     "ring stick rkpm penalty": ("ring", "rkpm", ['tools.platen.friction="stick"']),
     "ring stick fem penalty": ("ring", "fem", ['tools.platen.friction="stick"']),
+    "ring stick rkpm augmented": ("ring", "rkpm", ['tools.platen.friction="stick"']
+                                  + augmented("platen")),
+    "ring stick fem augmented": ("ring", "fem", ['tools.platen.friction="stick"']
+                                 + augmented("platen")),
+    "ring_refined stick rkpm penalty": ("ring_refined", "rkpm",
+                                        ['tools.platen.friction="stick"']),
+    "ring_refined stick rkpm augmented": ("ring_refined", "rkpm",
+                                          ['tools.platen.friction="stick"']
+                                          + augmented("platen")),
+    "ring_refined stick fem augmented": ("ring_refined", "fem",
+                                         ['tools.platen.friction="stick"']
+                                         + augmented("platen")),
     "punch rkpm penalty": ("punch", "rkpm", penalty("punch", "die")),
     "punch rkpm augmented": ("punch", "rkpm", augmented("punch", "die")),
     "punch fem augmented": ("punch", "fem", augmented("punch", "die")),

@@ -24,9 +24,11 @@ penetrates: released, it loses the stick shear that held it and springs
 back into the tool) has no consistent status under ``μ = ∞``.  The limit
 ``μ → ∞`` of Coulomb's law lets such a node slide at vanishing pressure;
 it is therefore released to frictionless unilateral contact (sliding,
-shear 0, ``t_n ≥ 0`` by Eq. 4.5) for the rest of the attempt.  The contact reports the nodes that slide and the largest tension
-of a frozen node, so that the departure from exact stick is measured.
+shear 0, ``t_n ≥ 0`` by Eq. 4.5) for the rest of the attempt.  The contact
+reports the nodes that slide and the largest tension of a frozen node, so
+that the departure from exact stick is measured.
 """
+
 import numpy as np
 
 __all__ = ["StatusFreeze"]
@@ -42,8 +44,8 @@ class StatusFreeze:
     m : int
         Number of contact nodes.
     enabled : bool
-        False: nothing is ever frozen (the penalty law keeps its own Newton
-        path unchanged).
+        False: nothing is ever frozen (the penalty law and finite ``μ``
+        keep their Newton path unchanged).
     flips : int
         Status changes between accepted Newton iterates after which a node
         is frozen closed.
@@ -68,6 +70,7 @@ class StatusFreeze:
 
     @property
     def free(self):
+        """Nodes under the contact law's own status."""
         return self.status == FREE
 
     @property

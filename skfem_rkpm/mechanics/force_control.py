@@ -136,7 +136,7 @@ class ForceDrivenContact:
     #: hooks of the wrapped contact that Newton calls when they exist
     #: (augmented Lagrangian enforcement, contact status counts)
     FORWARDED = ("touching", "restart", "augment", "violation", "status_changes", "tool",
-                 "points", "watch_status", "review_status", "frozen")
+                 "points", "watch_status", "review_status")
 
     def __getattr__(self, name):
         if name in ForceDrivenContact.FORWARDED:

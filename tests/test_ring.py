@@ -180,6 +180,16 @@ def test_scni_scene_puts_the_material_points_at_the_particles():
     wrong = load_scene(builtin_scenes()["ring"], [*COARSE, "discretization.stabilization=0.1"])
     with pytest.raises(SceneError, match="only for integration"):
         build(wrong, "rkpm")
+    shear = load_scene(builtin_scenes()["ring"], [*COARSE, 'discretization.integration="scni"',
+                                                  'discretization.stabilization_moduli="shear"'])
+    assert build(shear, "rkpm").problem.stabilization_moduli == "shear"
+    assert sim.problem.stabilization_moduli == "elastic"
+    for settings in (['discretization.stabilization_moduli="shear"'],
+                     ['discretization.integration="scni"', "discretization.stabilization=0.0",
+                      'discretization.stabilization_moduli="shear"']):
+        wrong = load_scene(builtin_scenes()["ring"], [*COARSE, *settings])
+        with pytest.raises(SceneError, match="stabilization_moduli: only for integration"):
+            build(wrong, "rkpm")
 
 
 def test_scni_run_writes_its_fields_at_the_particles(tmp_path):

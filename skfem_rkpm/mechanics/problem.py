@@ -14,7 +14,8 @@ code.  With nodal integration (``RKBasis(..., integration="scni")``) every
 particle is one point and carries the material state; a modified SCNI
 stabilization adds the constant Lagrangian stiffness ``α K_stab`` (see
 :func:`skfem_rkpm.approximation.nodal_integration.stabilization_matrix`),
-built with the elastic moduli of the material.
+built with the elastic moduli of the material or only their shear part
+(:func:`stabilization_moduli`).
 """
 
 import numpy as np
@@ -25,7 +26,38 @@ from .kinematics import (deformation_gradient, entries, from_entries,
                          inverse_and_determinant)
 from .materials import MaterialState, ReturnMapError
 
-__all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
+__all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem",
+           "STABILIZATION_MODULI", "stabilization_moduli"]
+
+#: the moduli ``C`` of the SCNI stabilization energy (:func:`stabilization_moduli`)
+STABILIZATION_MODULI = ("elastic", "shear")
+
+
+def stabilization_moduli(material, kind, dim):
+    """The constant moduli ``C_{c l d m}`` of the modified SCNI stabilization.
+
+    ``"elastic"``: the isotropic elastic moduli ``λ δ_cl δ_dm + μ (δ_cd δ_lm
+    + δ_cm δ_ld)``.  ``"shear"``: their deviatoric part only, ``λ`` replaced
+    by ``-2μ/3``: the energy ``μ |dev ε|²`` of the (three-dimensional)
+    deviator of the in-plane strain, blind to sub-cell volume changes (which
+    the nearly isochoric plastic flow of metals makes at no cost in the
+    material itself).  Positive semi-definite: in 3D its null space is the
+    volumetric strain; in 2D (``ε_zz = 0``) it keeps ``μ/3 (tr ε)²``.
+
+    Parameters
+    ----------
+    material : J2Material
+        Gives ``E`` and ``ν``.
+    kind : {"elastic", "shear"}
+    dim : int
+        Dimension of the gradients (2 or 3).
+    """
+    if kind not in STABILIZATION_MODULI:
+        raise ValueError(f"stabilization moduli must be one of {STABILIZATION_MODULI}, "
+                         f"not {kind!r}")
+    mu = material.E / (2.0 * (1.0 + material.nu))
+    lam = material.E * material.nu / ((1.0 + material.nu) * (1.0 - 2.0 * material.nu))
+    return isotropic_tangent(lam if kind == "elastic" else -2.0 * mu / 3.0, mu, dim)
 
 
 class InvertedElementError(RuntimeError):
@@ -80,11 +112,19 @@ class SolidProblem:
         ``"fbar"`` replaces the volume change of ``F`` at every quadrature
         point by its average over the background cell (F-bar, de Souza Neto
         et al. 1996), with the consistent (non-symmetric) tangent.
+    stabilization_moduli : {"elastic", "shear"}
+        Moduli of the SCNI stabilization of a basis with ``stabilization > 0``
+        (:func:`stabilization_moduli`).
     """
 
-    def __init__(self, basis, material, model="plane_strain", locking=None):
+    def __init__(self, basis, material, model="plane_strain", locking=None,
+                 stabilization_moduli="elastic"):
         if locking not in (None, "fbar"):
             raise ValueError(f"locking must be None or 'fbar', not {locking!r}")
+        if stabilization_moduli not in STABILIZATION_MODULI:
+            raise ValueError(f"stabilization_moduli must be one of {STABILIZATION_MODULI}, "
+                             f"not {stabilization_moduli!r}")
+        self.stabilization_moduli = stabilization_moduli
         self.basis, self.material, self.model = basis, material, model
         self.locking = locking
         self.assembler = Assembler(basis, axisymmetric=model == "axisymmetric")
@@ -100,16 +140,13 @@ class SolidProblem:
         self._stabilization_slots = None  # where K_stab's entries sit in the tangent
 
     def _stabilization_matrix(self):
-        """``α K_stab`` of a stabilized SCNI basis with the elastic moduli, or None."""
+        """``α K_stab`` of a stabilized SCNI basis, or None."""
         alpha = getattr(self.basis, "stabilization", 0.0)
         if not alpha:
             return None
-        m = self.material
-        mu = m.E / (2.0 * (1.0 + m.nu))
-        lam = m.E * m.nu / ((1.0 + m.nu) * (1.0 - 2.0 * m.nu))
         dim = self.basis.nodes.shape[0]
-        S = alpha * stabilization_matrix(self.basis.nodal_quadrature,
-                                         isotropic_tangent(lam, mu, dim), self.basis.ncomp)
+        C = stabilization_moduli(self.material, self.stabilization_moduli, dim)
+        S = alpha * stabilization_matrix(self.basis.nodal_quadrature, C, self.basis.ncomp)
         S.sum_duplicates()
         S.sort_indices()
         return S

@@ -124,6 +124,10 @@ def build(scene, method=None, trust_geo=False):
                              f"\"dni\" (this scene has {disc['integration']!r})")
         if disc["integration"] == "scni" and stabilization is None:
             stabilization = DEFAULT_STABILIZATION
+        if disc.get("stabilization_moduli") is not None and not stabilization:
+            raise SceneError("discretization.stabilization_moduli: only for integration = "
+                             "\"scni\" with stabilization > 0 (this scene has integration = "
+                             f"{disc['integration']!r}, stabilization = {stabilization or 0.0})")
         basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
                         support_shape=disc["support_shape"], intorder=disc["quadrature"],
                         integration=disc["integration"], axisymmetric=model == "axisymmetric",
@@ -143,7 +147,8 @@ def build(scene, method=None, trust_geo=False):
     locking = None if locking == "none" else locking
     if method == "rkpm" and disc["integration"] in ("scni", "dni"):
         locking = None  # F-bar averages over a cell: one point per particle, nothing to do
-    problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking)
+    problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking,
+                           stabilization_moduli=disc.get("stabilization_moduli") or "elastic")
 
     prescribed, loads, followers = [], [], []
     for name, section in scene.items():

@@ -140,7 +140,7 @@ def time_iteration(case, n, scheme, repeat):
     F = deformation_gradient(asm.gradient(d), problem.model)
     P, _, _, A = problem.material.update(F, problem.state, entries=problem.entries)
     P_ext, A_ext = from_entries(problem._at_entries(P), A, problem.model, problem.shape)
-    S = problem.stabilization
+    S = None if problem.stabilization is None else problem.stabilization.matrix
 
     def assembly():
         f = asm.linear(P_ext)

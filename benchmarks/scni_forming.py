@@ -10,6 +10,7 @@ its difference from the Gauss+VCI run of the same case, the steps, cut-backs,
 Newton iterations, the run's end status (folded cells) and its CPU time.
 
 Run:  python benchmarks/scni_forming.py                       (~15 minutes)
+      python benchmarks/scni_forming.py --fine --cases ring    (31 x 21 particles)
       python benchmarks/scni_forming.py --cases "mu=0.3" --variants shear
 """
 
@@ -44,6 +45,8 @@ VARIANTS = {
     "scni a=1e-2 shear": scni(1e-2, "shear"),
     "scni a=1e-3 tangent": scni(1e-3, "tangent"),
     "scni a=1e-2 tangent": scni(1e-2, "tangent"),
+    "scni a=3e-2 tangent": scni(3e-2, "tangent"),
+    "scni a=1e-1 tangent": scni(1e-1, "tangent"),
 }
 
 
@@ -67,7 +70,10 @@ def main():
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS))
     parser.add_argument("--keep", default=None, help="folder to keep the runs in")
     parser.add_argument("--limit", type=float, default=1800.0)
+    parser.add_argument("--fine", action="store_true",
+                        help="the ring at 31 x 21 particles (supports of 3 spacings)")
     args = parser.parse_args()
+    fine = ["geometry.divisions=[30, 20]", "discretization.support=3.0"] if args.fine else []
     print(f"load average at start: {os.getloadavg()[0]:.1f}")
     print("| case | variant | ID change % (rim mm) | Δ | force kN | Δ % | steps "
           "| cut-backs | iterations | all iterations | end | CPU s |")
@@ -76,6 +82,7 @@ def main():
         root = Path(args.keep or tmp)
         for case in [c for c in SCENES if any(w in c for w in args.cases)]:
             scene, settings = SCENES[case]
+            settings = settings + (fine if scene == "ring" else [])
             reference = None
             names = [v for v in VARIANTS if v == "gauss+vci" or any(w in v for w in args.variants)]
             for name in names:

@@ -11,7 +11,8 @@ from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
 from skfem_rkpm.approximation.nodal_integration import (smoothing_cells,
                                                         stabilization_matrix)
 from skfem_rkpm.mechanics.materials import J2Material
-from skfem_rkpm.mechanics.problem import SolidProblem, stabilization_moduli
+from skfem_rkpm.mechanics.problem import SolidProblem
+from skfem_rkpm.mechanics.stabilization import stabilization_moduli
 from skfem_rkpm.meshes import gmsh_rectangle, rectangle
 from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 from test_patch import linear_field, rk_error
@@ -132,7 +133,7 @@ def test_shear_moduli_give_the_energy_of_the_deviator(dim):
         volumetric = np.einsum("cldm,dm->cl", stabilization_moduli(material, "shear", 3),
                                np.eye(3))
         assert np.abs(volumetric).max() < 1e-12 * mu
-    with pytest.raises(ValueError, match="one of .*'shear'.*not 'bulk'"):
+    with pytest.raises(ValueError, match="'elastic' or 'shear', not 'bulk'"):
         stabilization_moduli(material, "bulk", dim)
 
 
@@ -209,7 +210,7 @@ def compression(integration, model, law, steps, alpha=0.0, n=4, mesh=None, modul
 
 @pytest.mark.parametrize("law, alpha, moduli", [
     ("perfect", 0.0, "elastic"), ("swift", 0.0, "elastic"), ("perfect", 1.0, "elastic"),
-    ("swift", 1.0, "elastic"), ("perfect", 1.0, "shear")])
+    ("swift", 1.0, "elastic"), ("perfect", 1.0, "shear"), ("swift", 1.0, "tangent")])
 def test_scni_axisymmetric_compression_follows_the_exact_curve(law, alpha, moduli,
                                                                distorted_quads):
     """Homogeneous finite-strain compression of a cylinder (axis included,
@@ -260,7 +261,7 @@ def test_nodal_integration_input_errors():
         RKBasis(m, integration="scni", stabilization=-1.0)
     with pytest.raises(ValueError, match="stabilization_moduli must be one of"):
         SolidProblem(RKBasis(m, vector=True, integration="scni", stabilization=0.5),
-                     J2Material(E, NU), stabilization_moduli="tangent")
+                     J2Material(E, NU), stabilization_moduli="secant")
     flat = np.array([[0.0, 1.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]])  # cell 0 on a line
     with pytest.raises(ValueError, match="mesh cell 0 .* zero area"):
         smoothing_cells(MeshTri(flat, np.array([[0, 1, 2], [0, 1, 3]]).T))
@@ -280,7 +281,7 @@ def test_stabilized_tangent_is_the_derivative_of_the_internal_force(model, modul
                            stabilization_moduli=moduli)
     d = 0.02 * np.random.default_rng(3).normal(size=basis.N)
     ev = problem.evaluate(d)
-    assert ev.state.alpha.max() > 0.01 and problem._stabilization_slots is not False
+    assert ev.state.alpha.max() > 0.01 and problem.stabilization._slots is not False
     h = 1e-6
     fd = np.column_stack([
         (problem.evaluate(d + h * e, tangent=False).f_int
@@ -289,3 +290,52 @@ def test_stabilized_tangent_is_the_derivative_of_the_internal_force(model, modul
     K = ev.K.toarray()
     # central differences: truncation ~h² and round-off ~1e-16 |f| / h
     assert np.abs(K - fd).max() < 1e-7 * np.abs(K).max()
+
+
+@pytest.mark.parametrize("model", ["plane_strain", "axisymmetric"])
+def test_tangent_stabilization_force_and_stiffness_are_partners(model):
+    """The "tangent" stabilization (the material tangent at each particle,
+    from the last converged step): after a plastic step is committed, its
+    stiffness has changed from the elastic one, the force at the committed
+    coefficients is unchanged by the commit, and the tangent equals central
+    differences of the internal force around a new state in the step."""
+    mesh = rectangle(1.0, 1.0, 4, 4, kind="tri", perturb=0.2)
+    basis = RKBasis(mesh, vector=True, support=2.0, integration="scni", stabilization=0.3,
+                    axisymmetric=model == "axisymmetric")
+    problem = SolidProblem(basis, J2Material(E, NU, LAWS["linear"]), model,
+                           stabilization_moduli="tangent")
+    rng = np.random.default_rng(3)
+    elastic = problem.stabilization.matrix.copy()
+    d1 = 0.02 * rng.normal(size=basis.N)
+    ev = problem.evaluate(d1)
+    assert ev.state.alpha.max() > 0.01
+    problem.commit(ev)
+    after = problem.evaluate(d1, tangent=False).f_int
+    np.testing.assert_allclose(after, ev.f_int, atol=1e-10 * np.abs(ev.f_int).max())
+    S = problem.stabilization.matrix
+    assert abs(S - elastic).max() > 0.1 * abs(elastic).max()
+    d = d1 + 0.01 * rng.normal(size=basis.N)
+    K = problem.evaluate(d).K.toarray()
+    assert problem.stabilization._slots is not False
+    h = 1e-6
+    fd = np.column_stack([
+        (problem.evaluate(d + h * e, tangent=False).f_int
+         - problem.evaluate(d - h * e, tangent=False).f_int) / (2 * h)
+        for e in np.eye(basis.N)])
+    assert np.abs(K - fd).max() < 1e-7 * np.abs(K).max()
+
+
+def test_tangent_stabilization_vanishes_on_linear_fields(distorted_tris):
+    """With moduli that differ from particle to particle (the plastic
+    tangents of a random state) the stabilization still gives no force for
+    a linear field: the piece gradients reproduce it."""
+    basis = RKBasis(distorted_tris, vector=True, support=2.0, integration="scni",
+                    stabilization=1.0)
+    problem = SolidProblem(basis, J2Material(E, NU, LAWS["linear"]), "plane_strain",
+                           stabilization_moduli="tangent")
+    ev = problem.evaluate(0.02 * np.random.default_rng(4).normal(size=basis.N))
+    assert np.ptp(ev.state.alpha) > 0.01  # the tangents differ between the particles
+    problem.commit(ev)
+    S = problem.stabilization.matrix
+    d = linear_field(distorted_tris.p).T.ravel()
+    assert np.abs(S @ d).max() < 1e-9 * abs(S).max() * np.abs(d).max()

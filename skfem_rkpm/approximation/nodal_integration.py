@@ -65,7 +65,7 @@ from .shape import ShapeTable
 
 __all__ = ["NODAL_SCHEMES", "SmoothingCells", "smoothing_cells", "boundary_rule",
            "NodalGeometry", "NodalQuadrature", "smoothed_gradients", "nodal_table",
-           "nodal_quadrature", "stabilization_matrix"]
+           "nodal_quadrature", "jump_operator", "stabilization_matrix"]
 
 NODAL_SCHEMES = ("scni", "dni")
 #: the smoothing cells SCNI can use (:func:`smoothing_cells`)
@@ -427,12 +427,15 @@ class NodalQuadrature:
         the piece gradients minus those of their cell.
     piece_weight : ndarray or None
         ``A_k`` (``2π V_k`` axisymmetric) of every piece.
+    piece_owner : ndarray or None
+        The particle ``L`` whose smoothing cell holds each piece.
     """
 
     table: ShapeTable
     geometry: NodalGeometry
     jumps: list
     piece_weight: np.ndarray
+    piece_owner: np.ndarray = None
 
 
 def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=False,
@@ -504,10 +507,11 @@ def nodal_quadrature(mesh, scheme, shape_table, nodal, npoints=2, axisymmetric=F
         x = np.vstack([cell_measure / area, (Q @ np.sum(px[1] * pw, axis=1)) / area])
         geometry = NodalGeometry(x, area)
         return NodalQuadrature(nodal_table(mean_values, cell_grads, nnodes), geometry,
-                               jumps, 2 * np.pi * measure)
+                               jumps, 2 * np.pi * measure, cells.owner)
     geometry = NodalGeometry(mesh.p, area)
     table = nodal_table(_as_csr(nodal, nnodes), cell_grads, nnodes)
-    return NodalQuadrature(table, geometry, jumps, measure if pieces else None)
+    return NodalQuadrature(table, geometry, jumps, measure if pieces else None,
+                           cells.owner if pieces else None)
 
 
 def _as_csr(table, nnodes):
@@ -515,7 +519,31 @@ def _as_csr(table, nnodes):
                          shape=(table.npoints, nnodes))
 
 
-def stabilization_matrix(quadrature, C, ncomp):
+def jump_operator(quadrature, ncomp):
+    """The piece gradient jumps ``B_k - B_L`` as one sparse operator.
+
+    Row ``(k ncomp + c) dim + l`` holds ``∂u_c/∂X_l`` on piece ``k`` minus
+    that of its cell for the coefficients ``d`` (dofs ``ncomp*I + c``).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (npieces * ncomp * dim, ncomp * nnodes)
+    """
+    D = quadrature.jumps
+    dim = len(D)
+    npieces, nnodes = D[0].shape
+    rows, cols, data = [], [], []
+    for c in range(ncomp):
+        for l in range(dim):
+            P = D[l].tocoo()
+            rows.append((P.row * ncomp + c) * dim + l)
+            cols.append(ncomp * P.col + c)
+            data.append(P.data)
+    return sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(npieces * ncomp * dim, ncomp * nnodes))
+
+
+def stabilization_matrix(quadrature, C, ncomp, jumps=None):
     """Modified SCNI stabilization ``Σ_k w_k (B_k - B_L)ᵀ C (B_k - B_L)``.
 
     Puso, Chen, Zywicz & Elmer (2008), IJNME 74, with the piece
@@ -527,15 +555,30 @@ def stabilization_matrix(quadrature, C, ncomp):
     ----------
     quadrature : NodalQuadrature
         SCNI quadrature (with ``jumps``).
-    C : ndarray, shape (dim, dim, dim, dim)
-        Tangent moduli ``C_{c l d m}`` (see :func:`skfem_rkpm.isotropic_tangent`).
+    C : ndarray, shape (dim, dim, dim, dim) or (nparticles, dim, dim, dim, dim)
+        Tangent moduli ``C_{c l d m}`` (see :func:`skfem_rkpm.isotropic_tangent`),
+        the same for every piece or one set per particle, used on the pieces of
+        its smoothing cell (``quadrature.piece_owner``).
     ncomp : int
         Field components (dofs ``ncomp*I + c``).
+    jumps : scipy.sparse.csr_matrix, optional
+        :func:`jump_operator` of the quadrature, when the caller keeps it
+        (moduli per particle only).
 
     Returns
     -------
     scipy.sparse.csr_matrix, shape (ncomp * nnodes, ncomp * nnodes)
     """
+    C = np.asarray(C, float)
+    if C.ndim == 5:
+        B = jump_operator(quadrature, ncomp) if jumps is None else jumps
+        dim = len(quadrature.jumps)
+        m = ncomp * dim
+        blocks = (quadrature.piece_weight[:, None, None]
+                  * C[quadrature.piece_owner].reshape(-1, m, m))
+        W = sp.bsr_matrix((blocks, np.arange(len(blocks)), np.arange(len(blocks) + 1)),
+                          shape=(len(blocks) * m, len(blocks) * m)).tocsr()
+        return (B.T @ (W @ B)).tocsr()
     D = quadrature.jumps
     dim = len(D)
     nnodes = D[0].shape[1]

@@ -12,53 +12,21 @@ shape functions are built once and reused every iteration.  ``∇̃`` are the
 test gradients (VCI-corrected for RK bases).  An FEM basis runs the same
 code.  With nodal integration (``RKBasis(..., integration="scni")``) every
 particle is one point and carries the material state; a modified SCNI
-stabilization adds the constant Lagrangian stiffness ``α K_stab`` (see
-:func:`skfem_rkpm.approximation.nodal_integration.stabilization_matrix`),
-built with the elastic moduli of the material or only their shear part
-(:func:`stabilization_moduli`).
+stabilization adds the Lagrangian stiffness ``α K_stab`` and its force
+(:class:`~skfem_rkpm.mechanics.stabilization.Stabilization`), built with
+the elastic moduli of the material, their shear part, or the material's
+tangent at the particles.
 """
 
 import numpy as np
 
-from ..approximation.nodal_integration import stabilization_matrix
-from ..assembly import Assembler, isotropic_tangent
+from ..assembly import Assembler
 from .kinematics import (deformation_gradient, entries, from_entries,
                          inverse_and_determinant)
 from .materials import MaterialState, ReturnMapError
+from .stabilization import STABILIZATION_MODULI, Stabilization
 
-__all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem",
-           "STABILIZATION_MODULI", "stabilization_moduli"]
-
-#: the moduli ``C`` of the SCNI stabilization energy (:func:`stabilization_moduli`)
-STABILIZATION_MODULI = ("elastic", "shear")
-
-
-def stabilization_moduli(material, kind, dim):
-    """The constant moduli ``C_{c l d m}`` of the modified SCNI stabilization.
-
-    ``"elastic"``: the isotropic elastic moduli ``λ δ_cl δ_dm + μ (δ_cd δ_lm
-    + δ_cm δ_ld)``.  ``"shear"``: their deviatoric part only, ``λ`` replaced
-    by ``-2μ/3``: the energy ``μ |dev ε|²`` of the (three-dimensional)
-    deviator of the in-plane strain, blind to sub-cell volume changes (which
-    the nearly isochoric plastic flow of metals makes at no cost in the
-    material itself).  Positive semi-definite: in 3D its null space is the
-    volumetric strain; in 2D (``ε_zz = 0``) it keeps ``μ/3 (tr ε)²``.
-
-    Parameters
-    ----------
-    material : J2Material
-        Gives ``E`` and ``ν``.
-    kind : {"elastic", "shear"}
-    dim : int
-        Dimension of the gradients (2 or 3).
-    """
-    if kind not in STABILIZATION_MODULI:
-        raise ValueError(f"stabilization moduli must be one of {STABILIZATION_MODULI}, "
-                         f"not {kind!r}")
-    mu = material.E / (2.0 * (1.0 + material.nu))
-    lam = material.E * material.nu / ((1.0 + material.nu) * (1.0 - 2.0 * material.nu))
-    return isotropic_tangent(lam if kind == "elastic" else -2.0 * mu / 3.0, mu, dim)
-
+__all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
 
 class InvertedElementError(RuntimeError):
     """det F ≤ 0 at quadrature points: the discretization has inverted."""
@@ -84,8 +52,10 @@ class Evaluation:
     (a Newton line search rejects some states, and a converged state needs
     no tangent); ``K`` is None if the evaluation was asked for none."""
 
-    def __init__(self, f_int, F, P, tau, state, form_tangent=None):
+    def __init__(self, f_int, F, P, tau, state, form_tangent=None, point=None):
         self.f_int, self.F, self.P, self.tau, self.state = f_int, F, P, tau, state
+        self.point = point  # the material's ReturnPoint (its tangent on demand)
+        self.d = None  # the coefficients evaluated
         self._form_tangent = form_tangent
         self._K = None
 
@@ -112,9 +82,9 @@ class SolidProblem:
         ``"fbar"`` replaces the volume change of ``F`` at every quadrature
         point by its average over the background cell (F-bar, de Souza Neto
         et al. 1996), with the consistent (non-symmetric) tangent.
-    stabilization_moduli : {"elastic", "shear"}
+    stabilization_moduli : {"elastic", "shear", "tangent"}
         Moduli of the SCNI stabilization of a basis with ``stabilization > 0``
-        (:func:`stabilization_moduli`).
+        (:mod:`skfem_rkpm.mechanics.stabilization`).
     """
 
     def __init__(self, basis, material, model="plane_strain", locking=None,
@@ -136,20 +106,14 @@ class SolidProblem:
         self._rows = np.array([i for i, _ in self.entries])
         self._cols = np.array([J for _, J in self.entries])
         self._local = None  # local tangent matrices, reused by every evaluation
-        self.stabilization = self._stabilization_matrix()
-        self._stabilization_slots = None  # where K_stab's entries sit in the tangent
+        self.stabilization = self._stabilization()
 
-    def _stabilization_matrix(self):
-        """``α K_stab`` of a stabilized SCNI basis, or None."""
-        alpha = getattr(self.basis, "stabilization", 0.0)
-        if not alpha:
+    def _stabilization(self):
+        """The :class:`Stabilization` of a stabilized SCNI basis, or None."""
+        if not getattr(self.basis, "stabilization", 0.0):
             return None
-        dim = self.basis.nodes.shape[0]
-        C = stabilization_moduli(self.material, self.stabilization_moduli, dim)
-        S = alpha * stabilization_matrix(self.basis.nodal_quadrature, C, self.basis.ncomp)
-        S.sum_duplicates()
-        S.sort_indices()
-        return S
+        return Stabilization(self.basis, self.material, self.stabilization_moduli,
+                             self.entries)
 
     @property
     def N(self):
@@ -192,38 +156,17 @@ class SolidProblem:
             return self._tangent_matrix(from_entries(P_at, A, self.model, self.shape)[1])
 
         return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
-                          form_tangent if tangent else None)
+                          form_tangent if tangent else None, point)
 
     def _stabilized(self, evaluation, d):
-        """Add the stabilization force ``α K_stab d`` and stiffness, if any."""
+        """Add the stabilization force and stiffness, if any."""
+        evaluation.d = d
         if self.stabilization is not None:
-            evaluation.f_int = evaluation.f_int + self.stabilization @ np.asarray(d)
+            evaluation.f_int = evaluation.f_int + self.stabilization.force(d)
             form = evaluation._form_tangent
             if form is not None:
-                evaluation._form_tangent = lambda: self._add_stabilization(form())
+                evaluation._form_tangent = lambda: self.stabilization.add_to(form())
         return evaluation
-
-    def _add_stabilization(self, K):
-        """``K + α K_stab``, in place in ``K``'s sparsity pattern when it holds
-        the stabilization's (found once; a general sparse sum otherwise)."""
-        S = self.stabilization
-        if self._stabilization_slots is None:
-            # the tangent's pattern is the assembler's, the same every time
-            # (its index arrays are shared with the assembler: not sorted here)
-            n = K.shape[1]
-            rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr)).astype(np.int64)
-            keys = rows * n + K.indices
-            order = np.argsort(keys, kind="stable")
-            S_rows = np.repeat(np.arange(S.shape[0]), np.diff(S.indptr)).astype(np.int64)
-            wanted = S_rows * n + S.indices
-            found = np.minimum(np.searchsorted(keys[order], wanted), len(keys) - 1)
-            slots = order[found]
-            self._stabilization_slots = (slots if np.array_equal(keys[slots], wanted)
-                                         else False)
-        if self._stabilization_slots is False:
-            return K + S
-        K.data[self._stabilization_slots] += S.data
-        return K
 
     def _stress(self, F, state):
         """``material.stress`` with failures named by quadrature point."""
@@ -310,7 +253,7 @@ class SolidProblem:
             return self._tangent_matrix(A_ext, (u, w))
 
         return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
-                          form_tangent if tangent else None)
+                          form_tangent if tangent else None, point)
 
     def _tangent_matrix(self, A_ext, rank_one=None):
         """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w`` (summed
@@ -328,8 +271,12 @@ class SolidProblem:
         return T[:, self._rows, self._cols]
 
     def commit(self, evaluation):
-        """Accept the state of a converged evaluation."""
+        """Accept the state of a converged evaluation (and move an incremental
+        stabilization on to it)."""
         self.state = evaluation.state
+        if self.stabilization is not None:
+            self.stabilization.commit(
+                evaluation.d, lambda: self._material_tangent(evaluation.point))
 
     def cauchy_stress(self, evaluation):
         """Cauchy stress ``σ = τ / det F`` at the quadrature points, (n, 3, 3)."""

@@ -88,6 +88,9 @@ def save_checkpoint(folder, sim, d, stepper, identity, **meta):
               "alpha": sim.problem.state.alpha}
     if stepper.rate is not None:
         arrays["rate"] = np.asarray(stepper.rate, float)
+    if sim.problem.stabilization is not None:  # an incremental SCNI stabilization
+        for name, value in sim.problem.stabilization.get_state().items():
+            arrays[f"stabilization.{name}"] = np.asarray(value)
     for k, tool in enumerate(sim.tools):
         for f in dataclasses.fields(tool.get_state()):
             arrays[f"tool{k}.{f.name}"] = np.asarray(getattr(tool.get_state(), f.name))
@@ -160,6 +163,14 @@ def load_checkpoint(folder, sim, identity):
                                   f"shape; start the run afresh (without --resume)")
     sim.problem.state = MaterialState(arrays["Cp_inv"].astype(float),
                                       arrays["alpha"].astype(float))
+    stabilization = sim.problem.stabilization
+    if stabilization is not None and stabilization.get_state():
+        try:
+            stabilization.set_state({name: arrays[f"stabilization.{name}"]
+                                     for name in stabilization.get_state()})
+        except (KeyError, ValueError) as err:
+            raise CheckpointError(f"{path}: the stabilization state does not fit ({err}); "
+                                  f"start the run afresh (without --resume)") from None
     for k, tool in enumerate(sim.tools):
         cls = type(tool.get_state())
         try:

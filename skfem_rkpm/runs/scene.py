@@ -109,9 +109,10 @@ SCHEMA = {
         "stabilization": Key("float", check=_non_negative,
                              doc="rkpm, scni: α of the modified SCNI stabilization "
                                  f"(default {DEFAULT_STABILIZATION}; 0: plain SCNI)"),
-        "stabilization_moduli": Key("str", None, choices=("elastic", "shear"),
+        "stabilization_moduli": Key("str", None, choices=("elastic", "shear", "tangent"),
                                     doc="rkpm, scni: moduli of the stabilization energy "
-                                        "(default elastic; shear: the deviatoric part only, "
+                                        "(default elastic; shear: the deviatoric part only; "
+                                        "tangent: the material tangent at the particles, "
                                         "see docs/nodal_integration.md)"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),

@@ -232,3 +232,39 @@ def test_paper_ring_with_scni_matches_gauss_vci():
     (id_vci, force_vci), (id_scni, force_scni) = results["vci"], results["scni"]
     assert abs(id_scni - id_vci) < 1.0
     assert force_scni == pytest.approx(force_vci, rel=0.02)
+
+
+def test_scni_tangent_stabilization_resumes_to_the_same_answer(tmp_path, monkeypatch):
+    """The incremental "tangent" stabilization keeps its force, coefficients
+    and stiffness of the last step in the checkpoint: a run interrupted after
+    two steps and resumed ends with the same bits as the uninterrupted one."""
+    import skfem_rkpm.runs.runner as runner
+
+    settings = [*COARSE, 'discretization.integration="scni"', "discretization.stabilization=0.01",
+                'discretization.stabilization_moduli="tangent"', "tools.platen.friction=0.3",
+                "steps.count=4", "tools.platen.motion=[0.0, -4.0]", "output.fields=false",
+                "output.figures=false"]
+
+    def sim():
+        return build(load_scene(builtin_scenes()["ring"], settings), "rkpm")
+
+    reference = run(sim(), tmp_path / "ref", progress=False)
+    assert reference.completed
+    write = runner.save_checkpoint
+    calls = {"n": 0}
+
+    def interrupting(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "save_checkpoint", interrupting)
+    with pytest.raises(KeyboardInterrupt):
+        run(sim(), tmp_path / "cut", progress=False)
+    monkeypatch.setattr(runner, "save_checkpoint", write)
+    with np.load(tmp_path / "cut" / "checkpoint.npz") as saved:
+        assert np.abs(saved["stabilization.f_ref"]).max() > 0
+    resumed = run(sim(), tmp_path / "cut", progress=False, resume=True)
+    assert resumed.completed
+    np.testing.assert_array_equal(resumed.d, reference.d)

@@ -39,7 +39,12 @@ scheme (and of SCNI with α = 1, the elastic choice), measured with 4 x 4 Gauss 
 particles and shape functions, so the error of the integration scheme is
 not hidden by measuring it at its own points).
 
+Part 3 (``--parts stabilization_update``): the cost of stabilized SCNI
+by the moduli of its stabilization (elastic, shear, tangent), per iteration
+and, for the tangent moduli, the update once per step.
+
 Run:  python benchmarks/nodal_iteration.py [--sizes 16 32 64] [--repeat 5]
+      python benchmarks/nodal_iteration.py --parts stabilization_update --repeat 7
       python benchmarks/nodal_iteration.py --cases block --parts cost [--block-sizes 6 10 14]
 """
 
@@ -83,8 +88,9 @@ BEAM_SCHEMES = {**SCHEMES, "SCNI α=1": dict(integration="scni", stabilization=1
 TARGET_RATIO = 0.25
 
 
-def solid_problem(case, n, scheme):
-    """The case's solid problem with ``n`` cells across (radially)."""
+def solid_problem(case, n, scheme, moduli="elastic"):
+    """The case's solid problem with ``n`` cells across (radially);
+    ``moduli``: those of the SCNI stabilization."""
     from skfem_rkpm import RKBasis
     from skfem_rkpm.mechanics.materials import J2Material, perfect
     from skfem_rkpm.mechanics.problem import SolidProblem
@@ -102,7 +108,32 @@ def solid_problem(case, n, scheme):
     basis = RKBasis(mesh, vector=True, radius=support * spacing, support_shape=shape,
                     axisymmetric=axisymmetric, **keywords)
     model = "3d" if case == "block" else "axisymmetric" if axisymmetric else "plane_strain"
-    return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), model)
+    return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), model,
+                        stabilization_moduli=moduli)
+
+
+def time_stabilization_update(case, n, repeat):
+    """Per Newton iteration and per step, CPU ms, of stabilized SCNI
+    (α = 1e-3) with the elastic, shear and tangent moduli: *evaluate* with
+    the tangent formed; *step update*: what the tangent moduli add once per
+    converged step (``commit``: the material tangent at the particles, the
+    stabilization matrix rebuilt, and the first tangent after it, which
+    finds the matrix's slots in the tangent again)."""
+    rows = {}
+    for moduli in ("elastic", "shear", "tangent"):
+        problem = solid_problem(case, n, "SCNI α=1e-3", moduli)
+        d = compressed(problem)
+        ev = problem.evaluate(d)
+        evaluate = median_ms(lambda: problem.evaluate(d).K, repeat)
+
+        def step():
+            problem.commit(ev)
+            return problem.evaluate(d).K
+
+        rows[moduli] = dict(particles=problem.basis.nnodes, evaluate=evaluate,
+                            update=median_ms(step, repeat) - evaluate
+                            if moduli == "tangent" else 0.0)
+    return rows
 
 
 def compressed(problem, reduction=0.3, noise=1e-3, seed=0):
@@ -273,7 +304,8 @@ def main():
     parser.add_argument("--levels", type=int, nargs="+", default=[2, 4, 8])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--parts", nargs="+", default=["cost", "accuracy"],
-                        choices=["cost", "accuracy", "block_accuracy"])
+                        choices=["cost", "accuracy", "block_accuracy",
+                                 "stabilization_update"])
     args = parser.parse_args()
     print(f"load: {os.getloadavg()[0]:.1f} (1-minute average, 2 cores)\n")
     if "cost" in args.parts:
@@ -282,6 +314,20 @@ def main():
         accuracy_table(args)
     if "block_accuracy" in args.parts:
         block_accuracy_table(args)
+    if "stabilization_update" in args.parts:
+        stabilization_update_table(args)
+
+
+def stabilization_update_table(args):
+    print("Stabilized SCNI (α = 1e-3) by moduli, compressed 30 %; CPU ms, median of "
+          f"{args.repeat}:\n")
+    print("| case | particles | moduli | evaluate ms | step update ms |")
+    print("|---|---:|---|---:|---:|")
+    for case in args.cases:
+        for n in (args.block_sizes if case == "block" else args.sizes):
+            for moduli, r in time_stabilization_update(case, n, args.repeat).items():
+                print(f"| {case} | {r['particles']} | {moduli} | {r['evaluate']:.1f} | "
+                      f"{r['update']:.1f} |", flush=True)
 
 
 def block_accuracy_table(args):

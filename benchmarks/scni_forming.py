@@ -7,7 +7,9 @@ variants at the same particles, in fresh processes
 (:func:`_whole_runs.run_scene`).  Reports the result (ring: inner-diameter
 change and platen force; upsetting: punch force and rim radius at mid-height),
 its difference from the Gauss+VCI run of the same case, the steps, cut-backs,
-Newton iterations, the run's end status (folded cells) and its CPU time.
+Newton iterations, the run's end status (the smallest ``det F`` at a cell
+corner of the drawn cells when it is <= 0, see ``runner.final_state_message``)
+and its CPU time.
 
 Run:  python benchmarks/scni_forming.py                       (~15 minutes)
       python benchmarks/scni_forming.py --fine --cases ring    (31 x 21 particles)
@@ -16,6 +18,7 @@ Run:  python benchmarks/scni_forming.py                       (~15 minutes)
 
 import argparse
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -44,6 +47,7 @@ VARIANTS = {
     "scni a=3e-3 shear": scni(3e-3, "shear"),
     "scni a=1e-2 shear": scni(1e-2, "shear"),
     "scni a=1e-3 tangent": scni(1e-3, "tangent"),
+    "scni a=3e-3 tangent": scni(3e-3, "tangent"),
     "scni a=1e-2 tangent": scni(1e-2, "tangent"),
     "scni a=3e-2 tangent": scni(3e-2, "tangent"),
     "scni a=1e-1 tangent": scni(1e-1, "tangent"),
@@ -98,7 +102,8 @@ def main():
                     reference = (size, force)
                 dsize = size - reference[0] if reference else float("nan")
                 dforce = 100 * (force / reference[1] - 1) if reference else float("nan")
-                end = ("folded" if "inverted" in status else
+                folded = re.search(r"det F = (\S+) <= 0 at the corner (X = \([^)]*\))", status)
+                end = (f"corner det F {float(folded[1]):.1e} at {folded[2]}" if folded else
                        "completed" if out["t"] >= 1 - 1e-9 else f"stopped at t={out['t']:.3f}")
                 print(f"| {case} | {name} | {size:.2f} | {dsize:+.2f} | {force:.1f} | "
                       f"{dforce:+.1f} | {out['steps']} | {out['cut-backs']} | "

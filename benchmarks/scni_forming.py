@@ -49,8 +49,6 @@ VARIANTS = {
     "scni a=1e-3 tangent": scni(1e-3, "tangent"),
     "scni a=3e-3 tangent": scni(3e-3, "tangent"),
     "scni a=1e-2 tangent": scni(1e-2, "tangent"),
-    "scni a=3e-2 tangent": scni(3e-2, "tangent"),
-    "scni a=1e-1 tangent": scni(1e-1, "tangent"),
 }
 
 
@@ -76,6 +74,8 @@ def main():
     parser.add_argument("--limit", type=float, default=1800.0)
     parser.add_argument("--fine", action="store_true",
                         help="the ring at 31 x 21 particles (supports of 3 spacings)")
+    parser.add_argument("--set", nargs="*", default=[], dest="settings",
+                        help="more scene settings for every run (e.g. steps.count=200)")
     args = parser.parse_args()
     fine = ["geometry.divisions=[30, 20]", "discretization.support=3.0"] if args.fine else []
     print(f"load average at start: {os.getloadavg()[0]:.1f}")
@@ -86,7 +86,7 @@ def main():
         root = Path(args.keep or tmp)
         for case in [c for c in SCENES if any(w in c for w in args.cases)]:
             scene, settings = SCENES[case]
-            settings = settings + (fine if scene == "ring" else [])
+            settings = settings + (fine if scene == "ring" else []) + args.settings
             reference = None
             names = [v for v in VARIANTS if v == "gauss+vci" or any(w in v for w in args.variants)]
             for name in names:

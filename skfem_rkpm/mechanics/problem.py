@@ -28,6 +28,7 @@ from .stabilization import STABILIZATION_MODULI, Stabilization
 
 __all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
 
+
 class InvertedElementError(RuntimeError):
     """det F ≤ 0 at quadrature points: the discretization has inverted."""
 

@@ -17,7 +17,7 @@ from skfem_rkpm.approximation.nodal_integration import (smoothing_cells,
                                                         stabilization_matrix)
 from skfem_rkpm.mechanics.materials import J2Material
 from skfem_rkpm.mechanics.problem import SolidProblem
-from skfem_rkpm.meshes import box
+from skfem_rkpm.meshes import box, rectangle
 from skfem_rkpm.solvers.constrained import solve_constrained
 from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 from skfem_rkpm.verification.exact import uniaxial_compression
@@ -262,18 +262,20 @@ def test_free_block_has_six_zero_modes(kind):
     assert lam_min["scni", 1.0] > 0.4
 
 
-@pytest.mark.parametrize("alpha", [0.0, 1.0])
-def test_scni_3d_compression_follows_the_exact_curve(alpha):
+@pytest.mark.parametrize("alpha, moduli", [(0.0, "elastic"), (1.0, "elastic"),
+                                           (1.0, "shear"), (1.0, "tangent")])
+def test_scni_3d_compression_follows_the_exact_curve(alpha, moduli):
     """Homogeneous finite-strain compression of a unit cube of distorted
     tetrahedra between frictionless platens (weak conditions), to 30 %, Swift
     hardening: force, stress and ε̄ᵖ at every particle on the exact curve to
-    1e-8 in every step, with one material point per particle."""
+    1e-8 in every step, with one material point per particle (with every
+    choice of stabilization moduli: the stabilization vanishes on it)."""
     m = perturbed_cube(MeshTet, n=3, amplitude=0.3)
     m = m.with_boundaries({"xmin": lambda x: x[0] < 1e-12, "ymin": lambda x: x[1] < 1e-12,
                            "zmin": lambda x: x[2] < 1e-12, "zmax": lambda x: x[2] > 1 - 1e-12})
     basis = RKBasis(m, vector=True, support=2.0, integration="scni", stabilization=alpha)
     law = LAWS["swift"]
-    problem = SolidProblem(basis, J2Material(E, NU, law), "3d")
+    problem = SolidProblem(basis, J2Material(E, NU, law), "3d", stabilization_moduli=moduli)
     conditions = [Prescribed("zmin", 2, 0.0, "weak"), Prescribed("zmax", 2, -0.3, "weak"),
                   Prescribed("xmin", 0, 0.0, "weak"), Prescribed("ymin", 1, 0.0, "weak")]
     result = newton_steps(problem, conditions, steps=4, tol=1e-10)
@@ -313,3 +315,23 @@ def test_degenerate_cells_are_named():
     with pytest.raises(ValueError, match=r"mesh cell 1 \(vertices \[0, 1, 2, 4\]\) has zero "
                                          "volume"):
         smoothing_cells(mesh)
+
+
+@pytest.mark.parametrize("model", ["3d", "plane_strain", "axisymmetric"])
+def test_tangent_moduli_of_the_virgin_state_are_the_elastic_ones(model):
+    """At the undeformed state the material tangent is the elastic moduli
+    (no stress), so the "tangent" stabilization committed there equals the
+    "elastic" one to round-off: the tangent's entries reach the right
+    ``C_{c l d m}`` (in 3D all nine, in 2D the in-plane four, never the hoop
+    entry)."""
+    mesh = (perturbed_cube(MeshTet, n=2, amplitude=0.3) if model == "3d"
+            else rectangle(1.0, 1.0, 4, 4, kind="tri", perturb=0.2))
+    basis = RKBasis(mesh, vector=True, support=2.0, integration="scni", stabilization=1.0,
+                    axisymmetric=model == "axisymmetric")
+    material = J2Material(E, NU, LAWS["linear"])
+    tangent = SolidProblem(basis, material, model, stabilization_moduli="tangent")
+    elastic = SolidProblem(basis, material, model).stabilization.matrix
+    ev = tangent.evaluate(np.zeros(basis.N))
+    tangent.commit(ev)
+    S = tangent.stabilization.matrix
+    assert abs(S - elastic).max() < 1e-12 * abs(elastic).max()

@@ -14,18 +14,16 @@ values: use :meth:`RKBasis.nodal_values` (Eq. 3.32) to read nodal values and
 """
 
 import copy
-import warnings
 
 import numpy as np
 import scipy.sparse as sp
-from skfem.assembly.basis import AbstractBasis
-from skfem.element import DiscreteField, Element, ElementH1, ElementVector
+from skfem.element import Element, ElementH1, ElementVector
 
 from . import cell_layout
 from .basis_views import CellViews, FacetViews
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
-from ..forms import SlowAssemblyWarning
+from .rk_base import RKBase
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
                                nodal_quadrature)
@@ -35,23 +33,6 @@ from .shape import coordinates
 __all__ = ["RKBasis", "RKFacetBasis"]
 
 INTEGRATION_SCHEMES = ("vci", "vci_symmetric", "gauss") + NODAL_SCHEMES
-
-
-def pairwise_loop_message(basis):
-    """What scikit-fem's loop over local functions does on ``basis``
-    and the call that does it right and fast."""
-    text = ("scikit-fem's loop over local functions (form.assemble(basis), skfem.asm) "
-            "reads RKBasis.basis: on an RK basis it is 100-1000 times slower than "
-            "skfem_rkpm.asm, which has skfem.asm's signature (from skfem_rkpm import asm; "
-            "for a composite basis rk * fem, assemble its blocks with it and join them "
-            "with scipy.sparse.bmat)")
-    if getattr(basis, "trial", basis) is not basis:
-        text += (". With integration='vci' the local functions carry the corrected "
-                 "*test* gradients; a bilinear form that reads trial gradients gets them "
-                 "on the trial side too, which is not the consistent matrix (the patch "
-                 "test fails): assemble with skfem_rkpm.asm(form, basis.trial, basis), "
-                 "or build RKBasis(..., integration='vci_symmetric')")
-    return text
 
 
 def field_is_vector(vector):
@@ -86,148 +67,6 @@ def default_integration(interpolating, order, axisymmetric):
     return "vci"
 
 
-class _RKBase(AbstractBasis):
-    """What cell and facet RK bases share: dofs, local functions, fields."""
-
-    def _setup(self, mesh, geometry, table, test_grads, nodes, vector):
-        self.mesh = mesh
-        self.geometry = geometry
-        self.X, self.W = geometry.X, geometry.W
-        self.dx = geometry.dx
-        self.nelems = geometry.nelems
-        self.nodes = nodes
-        self.table = table
-        self.test_grads = test_grads
-        self.ncomp = nodes.shape[0] if vector else 1
-        self.tind = None
-        self.mapping = geometry.mapping
-        nqp = self.X.shape[-1]
-        self._cells = cell_layout.cell_particles(table, self.nelems, nqp)
-        self.element_nodes, self.values, self.grads = cell_layout.padded(
-            table, self.nelems, nqp, test_grads, self._cells
-        )
-        self.Nbfun = self.ncomp * self.element_nodes.shape[0]
-
-    # -- dof numbering -----------------------------------------------------
-    @property
-    def N(self):
-        return self.ncomp * self.nodes.shape[1]
-
-    @property
-    def nnodes(self):
-        return self.nodes.shape[1]
-
-    @property
-    def element_dofs(self):
-        c = self.ncomp
-        dofs = c * self.element_nodes[:, None, :] + np.arange(c)[None, :, None]
-        return dofs.reshape(-1, self.nelems)
-
-    @property
-    def doflocs(self):
-        """Location of every coefficient: its particle, shape (dim, N).
-
-        Unless ``interpolating=True``, the coefficients are not the field's
-        values there (they are generalized displacements): ``f(basis.doflocs)``
-        is not the coefficient vector of ``f``; use :meth:`RKBasis.project`,
-        and :meth:`RKBasis.nodal_values` to read values at the particles.
-        """
-        return np.repeat(self.nodes, self.ncomp, axis=1)
-
-    @property
-    def vector(self):
-        return self.ncomp > 1
-
-    # -- local functions for scikit-fem forms -----------------------------
-    @property
-    def basis(self):
-        """Per local function a tuple ``(DiscreteField,)`` as in scikit-fem,
-        read by scikit-fem's loop over local functions
-        (``form.assemble(basis)``, ``skfem.asm``): warns with
-        :class:`~skfem_rkpm.forms.SlowAssemblyWarning` that names the fast
-        call (see :func:`pairwise_loop_message`), once per basis.  Without
-        the warning: :attr:`local_fields`."""
-        if not getattr(self, "_loop_warned", False):
-            self._loop_warned = True
-            warnings.warn(pairwise_loop_message(self), SlowAssemblyWarning, stacklevel=2)
-        return self.local_fields
-
-    @property
-    def local_fields(self):
-        """Per local function a tuple ``(DiscreteField,)`` (test gradients)."""
-        if getattr(self, "_basis", None) is None:
-            self._basis = self._local_functions(self.values, self.grads)
-        return self._basis
-
-    def _local_functions(self, values, grads):
-        out = []
-        c = self.ncomp
-        for k in range(self.element_nodes.shape[0]):
-            g = None if grads is None else grads[:, k]
-            if c == 1:
-                out.append((DiscreteField(values[k], g),))
-                continue
-            for comp in range(c):
-                v = np.zeros((c,) + values[k].shape)
-                v[comp] = values[k]
-                gv = None
-                if g is not None:
-                    gv = np.zeros((c,) + g.shape)
-                    gv[comp] = g
-                out.append((DiscreteField(v, gv),))
-        return out
-
-    def default_parameters(self):
-        return self.geometry.default_parameters()
-
-    def global_coordinates(self):
-        return self.geometry.global_coordinates()
-
-    def mesh_parameters(self):
-        return self.geometry.mesh_parameters()
-
-    # -- fields -------------------------------------------------------------
-    def _components(self, w):
-        w = np.asarray(w)
-        if w.shape[0] != self.N:
-            raise ValueError(
-                f"coefficient vector has length {w.shape[0]}, the basis has "
-                f"{self.N} dofs ({self.nnodes} particles x {self.ncomp} components)"
-            )
-        return w.reshape(self.nnodes, self.ncomp).T
-
-    def _shape_of(self, a):
-        return a.reshape(a.shape[:-1] + (self.nelems, -1))
-
-    def interpolate(self, w):
-        """Field and its exact gradient at the quadrature points.
-
-        Returns a ``DiscreteField`` of shape (nelems, nqp) for scalar bases
-        or (dim, nelems, nqp) for vector bases, with ``.grad``.
-        """
-        comps = self._components(w)
-        A = self.table.matrix()
-        value = self._shape_of(comps @ A.T)
-        grad = None
-        if self.table.grads is not None:
-            grad = np.stack([comps @ self.table.gradient_matrix(k).T
-                             for k in range(self.nodes.shape[0])], axis=-2)
-            grad = self._shape_of(grad)
-        if self.ncomp == 1:
-            value = value[0]
-            grad = None if grad is None else grad[0]
-        return DiscreteField(value, grad)
-
-    def zeros(self, dtype=None):
-        return np.zeros(self.N, dtype=dtype)
-
-    def __repr__(self):
-        return (f"<skfem_rkpm {type(self).__name__}: {self.nnodes} particles, "
-                f"{self.N} dofs, {self.nelems} cells x {self.X.shape[-1]} "
-                f"quadrature points, up to {self.element_nodes.shape[0]} "
-                "particles per cell>")
-
-
 def _check_distinct(nodes, radius):
     """Raise if two particles coincide (closer than 1e-9 of the smallest
     support, or of the extent of the particles if that is smaller)."""
@@ -248,7 +87,7 @@ def _check_distinct(nodes, radius):
             "singular; remove the duplicate vertices or particles")
 
 
-class RKBasis(CellViews, _RKBase):
+class RKBasis(CellViews, RKBase):
     """Reproducing kernel basis on the background cells of a scikit-fem mesh.
 
     Parameters
@@ -604,7 +443,7 @@ class RKBasis(CellViews, _RKBase):
         return RKFacetBasis(self, facets, intorder)
 
 
-class RKFacetBasis(FacetViews, _RKBase):
+class RKFacetBasis(FacetViews, RKBase):
     """The particles of an :class:`RKBasis` seen from boundary facets.
 
     Used for boundary integrals (pressure and traction loads) with

@@ -1,0 +1,162 @@
+"""What cell and facet RK bases share: dofs, local functions, fields.
+
+:class:`RKBase` is scikit-fem's ``AbstractBasis`` face of an RK shape table:
+per background cell (or facet) the particles whose supports reach its
+quadrature points, padded to a common number of local functions
+(:mod:`.cell_layout`), the interleaved dof numbering of vector fields, and
+``interpolate``.  :class:`~.basis.RKBasis` and :class:`~.basis.RKFacetBasis`
+build the tables.
+"""
+
+import warnings
+
+import numpy as np
+from skfem.assembly.basis import AbstractBasis
+from skfem.element import DiscreteField
+
+from . import cell_layout
+from ..forms import PairwiseLoopWarning, pairwise_loop_message
+
+__all__ = ["RKBase"]
+
+
+class RKBase(AbstractBasis):
+    """What cell and facet RK bases share: dofs, local functions, fields."""
+
+    def _setup(self, mesh, geometry, table, test_grads, nodes, vector):
+        self.mesh = mesh
+        self.geometry = geometry
+        self.X, self.W = geometry.X, geometry.W
+        self.dx = geometry.dx
+        self.nelems = geometry.nelems
+        self.nodes = nodes
+        self.table = table
+        self.test_grads = test_grads
+        self.ncomp = nodes.shape[0] if vector else 1
+        self.tind = None
+        self.mapping = geometry.mapping
+        nqp = self.X.shape[-1]
+        self._cells = cell_layout.cell_particles(table, self.nelems, nqp)
+        self.element_nodes, self.values, self.grads = cell_layout.padded(
+            table, self.nelems, nqp, test_grads, self._cells
+        )
+        self.Nbfun = self.ncomp * self.element_nodes.shape[0]
+
+    # -- dof numbering -----------------------------------------------------
+    @property
+    def N(self):
+        return self.ncomp * self.nodes.shape[1]
+
+    @property
+    def nnodes(self):
+        return self.nodes.shape[1]
+
+    @property
+    def element_dofs(self):
+        c = self.ncomp
+        dofs = c * self.element_nodes[:, None, :] + np.arange(c)[None, :, None]
+        return dofs.reshape(-1, self.nelems)
+
+    @property
+    def doflocs(self):
+        """Location of every coefficient: its particle, shape (dim, N).
+
+        Unless ``interpolating=True``, the coefficients are not the field's
+        values there (they are generalized displacements): ``f(basis.doflocs)``
+        is not the coefficient vector of ``f``; use :meth:`RKBasis.project`,
+        and :meth:`RKBasis.nodal_values` to read values at the particles.
+        """
+        return np.repeat(self.nodes, self.ncomp, axis=1)
+
+    @property
+    def vector(self):
+        return self.ncomp > 1
+
+    # -- local functions for scikit-fem forms -----------------------------
+    @property
+    def basis(self):
+        """Per local function a tuple ``(DiscreteField,)`` as in scikit-fem,
+        read by scikit-fem's loop over local functions
+        (``form.assemble(basis)``, ``skfem.asm``): warns with
+        :class:`~skfem_rkpm.forms.PairwiseLoopWarning` that names the fast
+        call (see :func:`~skfem_rkpm.forms.pairwise_loop_message`), once per basis.  Without
+        the warning: :attr:`local_fields`."""
+        if not getattr(self, "_loop_warned", False):
+            self._loop_warned = True
+            warnings.warn(pairwise_loop_message(self), PairwiseLoopWarning, stacklevel=2)
+        return self.local_fields
+
+    @property
+    def local_fields(self):
+        """Per local function a tuple ``(DiscreteField,)`` (test gradients)."""
+        if getattr(self, "_basis", None) is None:
+            self._basis = self._local_functions(self.values, self.grads)
+        return self._basis
+
+    def _local_functions(self, values, grads):
+        out = []
+        c = self.ncomp
+        for k in range(self.element_nodes.shape[0]):
+            g = None if grads is None else grads[:, k]
+            if c == 1:
+                out.append((DiscreteField(values[k], g),))
+                continue
+            for comp in range(c):
+                v = np.zeros((c,) + values[k].shape)
+                v[comp] = values[k]
+                gv = None
+                if g is not None:
+                    gv = np.zeros((c,) + g.shape)
+                    gv[comp] = g
+                out.append((DiscreteField(v, gv),))
+        return out
+
+    def default_parameters(self):
+        return self.geometry.default_parameters()
+
+    def global_coordinates(self):
+        return self.geometry.global_coordinates()
+
+    def mesh_parameters(self):
+        return self.geometry.mesh_parameters()
+
+    # -- fields -------------------------------------------------------------
+    def _components(self, w):
+        w = np.asarray(w)
+        if w.shape[0] != self.N:
+            raise ValueError(
+                f"coefficient vector has length {w.shape[0]}, the basis has "
+                f"{self.N} dofs ({self.nnodes} particles x {self.ncomp} components)"
+            )
+        return w.reshape(self.nnodes, self.ncomp).T
+
+    def _shape_of(self, a):
+        return a.reshape(a.shape[:-1] + (self.nelems, -1))
+
+    def interpolate(self, w):
+        """Field and its exact gradient at the quadrature points.
+
+        Returns a ``DiscreteField`` of shape (nelems, nqp) for scalar bases
+        or (dim, nelems, nqp) for vector bases, with ``.grad``.
+        """
+        comps = self._components(w)
+        A = self.table.matrix()
+        value = self._shape_of(comps @ A.T)
+        grad = None
+        if self.table.grads is not None:
+            grad = np.stack([comps @ self.table.gradient_matrix(k).T
+                             for k in range(self.nodes.shape[0])], axis=-2)
+            grad = self._shape_of(grad)
+        if self.ncomp == 1:
+            value = value[0]
+            grad = None if grad is None else grad[0]
+        return DiscreteField(value, grad)
+
+    def zeros(self, dtype=None):
+        return np.zeros(self.N, dtype=dtype)
+
+    def __repr__(self):
+        return (f"<skfem_rkpm {type(self).__name__}: {self.nnodes} particles, "
+                f"{self.N} dofs, {self.nelems} cells x {self.X.shape[-1]} "
+                f"quadrature points, up to {self.element_nodes.shape[0]} "
+                "particles per cell>")

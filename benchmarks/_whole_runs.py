@@ -50,3 +50,13 @@ def history(folder):
                   "iterations": sum(int(r["iterations"]) for r in rows),
                   "all iterations": sum(int(r["all iterations"]) for r in rows),
                   "cut-backs": sum(int(r["cutbacks"]) for r in rows)}
+
+
+#: the ring's inner radius before compression, mm (scenes ring, ring_refined)
+RING_INNER_RADIUS = 30.0
+
+
+def ring_id_change(gauges):
+    """Inner-diameter change of the ring in %, from a row of its gauges (the
+    ``inner_mid x`` gauge: the inner surface at mid-height)."""
+    return 100.0 * (float(gauges["inner_mid x"]) / RING_INNER_RADIUS - 1.0)

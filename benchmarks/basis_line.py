@@ -41,9 +41,7 @@ BASES = {"FEM": (skfem.Basis, skfem.asm),
 
 def crank_nicolson_error(result):
     steps, centre = result
-    r = ((1 - (1 - scripts.THETA) * scripts.DECAY * scripts.DT)
-         / (1 + scripts.THETA * scripts.DECAY * scripts.DT))
-    return abs(centre / r**steps - 1)
+    return abs(centre / scripts.crank_nicolson_factor()**steps - 1)
 
 
 def relative(read, reference):

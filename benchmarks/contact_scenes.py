@@ -21,7 +21,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from _whole_runs import history, run_scene
+from _whole_runs import history, ring_id_change, run_scene
 
 
 def augmented(*tools, factor=10):
@@ -83,7 +83,7 @@ def summary(folder):
     last = rows[-1]
     out["penetration"] = max(float(v) for k, v in last.items() if k.endswith("penetration"))
     if "inner_mid x" in last:
-        out["result"] = (f"ID {100 * float(last['inner_mid x']) / 30.0 - 100:+.3f} %, "
+        out["result"] = (f"ID {ring_id_change(last):+.3f} %, "
                          f"F {-float(last['reaction platen y']) / 1e3:.1f} kN")
     elif "reaction punch y" in last:
         out["result"] = f"F {-float(last['reaction punch y']):.1f} N"

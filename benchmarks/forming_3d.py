@@ -23,7 +23,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from _whole_runs import history, run_scene
+from _whole_runs import history, ring_id_change, run_scene
 
 CASES = {
     # name: (scene, method, settings)
@@ -42,7 +42,7 @@ QUICK = {"ring_sector": ["geometry.divisions=[5, 2, 4]", "steps.count=20"],
 def result(scene, last, status):
     """The scene's own numbers from the last row of its history."""
     if scene == "ring_sector":
-        change = 100.0 * (float(last["inner_mid x"]) / 30.0 - 1.0)
+        change = ring_id_change(last)
         return f"ID {change:+.2f} %, F {-24e-3 * float(last['reaction platen z']):.0f} kN"
     if scene == "billet_3d":
         folded = "; cells folded" if "inverted" in status else ""

@@ -45,6 +45,7 @@ import numpy as np
 from skfem_rkpm.runs.build import build
 from skfem_rkpm.runs.runner import run
 from skfem_rkpm.runs.scene import builtin_scenes, load_scene, parse_scene
+from _whole_runs import ring_id_change
 
 SIGMA_Y = 100.0
 K_SHEAR = SIGMA_Y / np.sqrt(3.0)
@@ -288,7 +289,7 @@ def scene_case(name, method, locking):
     cpu = time.process_time() - start
     last = result.history[-1]
     if scene_name == "ring":
-        value = 100 * (result.gauges[-1]["inner_mid x"] / 30.0 - 1)
+        value = ring_id_change(result.gauges[-1])
     elif scene_name == "punch":
         value = -last.reactions["punch"][1]
     else:

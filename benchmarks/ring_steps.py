@@ -12,6 +12,7 @@ import time
 
 from skfem_rkpm.runs.runner import build, run
 from skfem_rkpm.runs.scene import builtin_scenes, load_scene
+from _whole_runs import ring_id_change
 
 
 def ring(method, steps, friction):
@@ -23,7 +24,7 @@ def ring(method, steps, friction):
     start = time.perf_counter()
     result = run(sim, progress=False)
     seconds = time.perf_counter() - start
-    change = 100.0 * (result.gauges[-1]["inner_mid x"] - 30.0) / 30.0
+    change = ring_id_change(result.gauges[-1])
     iterations = sum(r.iterations for r in result.history)
     return result.completed, change, len(result.history), iterations, seconds
 

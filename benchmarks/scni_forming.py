@@ -22,7 +22,7 @@ import re
 import tempfile
 from pathlib import Path
 
-from _whole_runs import history, run_scene
+from _whole_runs import history, ring_id_change, run_scene
 
 SCENES = {
     "ring mu=0.15": ("ring", ["tools.platen.friction=0.15"]),
@@ -57,7 +57,7 @@ def result(folder):
     rows, out = history(folder)
     last = rows[-1]
     if "inner_mid x" in last:
-        size = 100 * float(last["inner_mid x"]) / 30.0 - 100  # ID change, %
+        size = ring_id_change(last)  # ID change, %
         force = -float(last["reaction platen y"]) / 1e3  # kN
     else:
         size = float(last["rim_mid x"])  # mm

@@ -5,6 +5,8 @@ import os
 for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(variable, "1")
 
+from contextlib import contextmanager
+
 import numpy as np
 import pytest
 from skfem import MeshQuad, MeshTri
@@ -30,3 +32,25 @@ def distorted_quads():
 def distorted_tris():
     t = np.linspace(0.0, 1.0, 11)
     return perturbed(MeshTri.init_tensor(t, t), 0.3)
+
+
+@contextmanager
+def interrupted_at_checkpoint(monkeypatch, call=3):
+    """Inside the block the runner's ``call``-th checkpoint raises
+    KeyboardInterrupt instead of being written (a kill after that step)."""
+    import skfem_rkpm.runs.runner as runner
+
+    write = runner.save_checkpoint
+    calls = {"n": 0}
+
+    def interrupting(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == call:
+            raise KeyboardInterrupt
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "save_checkpoint", interrupting)
+    try:
+        yield
+    finally:
+        monkeypatch.setattr(runner, "save_checkpoint", write)

@@ -8,6 +8,7 @@ import pytest
 import skfem_rkpm.runs.runner as runner
 from skfem_rkpm.runs.cli import main
 from skfem_rkpm.runs.scene import parse_scene
+from conftest import interrupted_at_checkpoint
 
 BLOCK = """
 [model]
@@ -65,19 +66,8 @@ def test_run_writes_history_fields_and_figures(tmp_path, method):
 def test_interrupted_run_resumes_to_the_same_answer(tmp_path, monkeypatch):
     reference = runner.run(runner.build(parse_scene(BLOCK)), tmp_path / "ref",
                            progress=False)
-    calls = {"n": 0}
-    write = runner.save_checkpoint
-
-    def interrupting(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] == 3:
-            raise KeyboardInterrupt
-        return write(*args, **kwargs)
-
-    monkeypatch.setattr(runner, "save_checkpoint", interrupting)
-    with pytest.raises(KeyboardInterrupt):
+    with interrupted_at_checkpoint(monkeypatch), pytest.raises(KeyboardInterrupt):
         runner.run(runner.build(parse_scene(BLOCK)), tmp_path / "cut", progress=False)
-    monkeypatch.setattr(runner, "save_checkpoint", write)
     assert (tmp_path / "cut" / "status.txt").read_text().startswith("interrupted")
     # the third step was appended before its checkpoint failed: resume drops it
     assert len(list(csv.DictReader(open(tmp_path / "cut" / "history.csv")))) == 3

@@ -1,7 +1,8 @@
 """Voronoi smoothing cells for SCNI: the cells tile the domain and are the
 Voronoi cells, every piece closes, on a uniform grid they are the median
 dual cells, and SCNI on them passes the patch tests, keeps the integration
-constraint and (stabilized) has no spurious zero-energy modes."""
+constraint (tests/test_nodal_integration.py, with both kinds of cells) and
+(stabilized) has no spurious zero-energy modes."""
 
 import numpy as np
 import pytest
@@ -78,23 +79,6 @@ def test_merged_cells_keep_only_the_cell_boundaries():
     m = MeshQuad.init_tensor(t, t)
     merged = voronoi(m).merged()
     assert merged.segment_points.shape[1] == smoothing_cells(m).merged().segment_points.shape[1]
-
-
-@pytest.mark.parametrize("mesh", ["distorted_quads", "distorted_tris"])
-def test_integration_constraint(mesh, request):
-    """Σ_L A_L b_I(X_L) = ∮_Γ Ψ_I n dΓ with the right side from the facet
-    basis; the boundary edges of these meshes are split at their midpoints
-    by the cells (their boundary vertices are not moved)."""
-    m = request.getfixturevalue(mesh)
-    basis = RKBasis(m, support=2.0, integration="scni", smoothing="voronoi")
-    A = basis.dx[:, 0]
-    lhs = np.stack([np.bincount(basis.table.indices, basis.table.grads[k]
-                                * A[basis.table.rows], minlength=basis.nnodes)
-                    for k in range(2)])
-    fb = basis.boundary()
-    w = (fb.dx[None] * fb.geometry.normals).reshape(2, -1)
-    rhs = np.stack([fb.table.matrix().T @ w[k] for k in range(2)])
-    np.testing.assert_allclose(lhs, rhs, atol=1e-14)
 
 
 @pytest.mark.parametrize("mesh", ["distorted_quads", "distorted_tris"])

@@ -570,9 +570,13 @@ def stabilization_matrix(quadrature, C, ncomp, jumps=None):
     scipy.sparse.csr_matrix, shape (ncomp * nnodes, ncomp * nnodes)
     """
     C = np.asarray(C, float)
+    dim = len(quadrature.jumps)
+    one = (ncomp, dim, ncomp, dim)
+    if C.shape != one and C.shape[1:] != one:
+        raise ValueError(f"stabilization moduli of shape {C.shape}: give C_(c l d m) as "
+                         f"{one}, or one set per particle, (nparticles,) + {one}")
     if C.ndim == 5:
         B = jump_operator(quadrature, ncomp) if jumps is None else jumps
-        dim = len(quadrature.jumps)
         m = ncomp * dim
         blocks = (quadrature.piece_weight[:, None, None]
                   * C[quadrature.piece_owner].reshape(-1, m, m))
@@ -580,7 +584,6 @@ def stabilization_matrix(quadrature, C, ncomp, jumps=None):
                           shape=(len(blocks) * m, len(blocks) * m)).tocsr()
         return (B.T @ (W @ B)).tocsr()
     D = quadrature.jumps
-    dim = len(D)
     nnodes = D[0].shape[1]
     W = sp.diags(quadrature.piece_weight)
     products = {(l, m): (D[l].T @ W @ D[m]).tocoo()

@@ -16,7 +16,8 @@ corners) and its sides, as quadrilaterals with a repeated corner (the
 layout of :class:`~.nodal_integration.SmoothingCells`): a corner on a
 straight side (where a bisector meets a mesh edge) gives no triangle of
 zero area.  The corners that are computed (all but the mesh vertices) are
-rounded to a grid of 2^-40 of the domain's extent, so that the pieces on
+rounded to a grid of 2^-40 of the domain's extent (at least 64 units in the
+last place of the coordinates), so that the pieces on
 either side of a Voronoi edge or a mesh edge compute the same end points;
 a side met twice is stored once, with opposite signs on its two triangles.
 The sides inside a cell (spokes, mesh edges within a Voronoi cell) then

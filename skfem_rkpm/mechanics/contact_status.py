@@ -144,4 +144,3 @@ class StatusFreeze:
         self.status[tension] = OPEN
         self.status[penetration] = SLIDING
         return tension | penetration
-

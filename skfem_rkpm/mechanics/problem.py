@@ -24,7 +24,7 @@ from ..assembly import Assembler
 from .kinematics import (deformation_gradient, entries, from_entries,
                          inverse_and_determinant)
 from .materials import MaterialState, ReturnMapError
-from .stabilization import STABILIZATION_MODULI, Stabilization
+from .stabilization import Stabilization, checked_moduli
 
 __all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
 
@@ -92,9 +92,12 @@ class SolidProblem:
                  stabilization_moduli="elastic"):
         if locking not in (None, "fbar"):
             raise ValueError(f"locking must be None or 'fbar', not {locking!r}")
-        if stabilization_moduli not in STABILIZATION_MODULI:
-            raise ValueError(f"stabilization_moduli must be one of {STABILIZATION_MODULI}, "
-                             f"not {stabilization_moduli!r}")
+        checked_moduli(stabilization_moduli)
+        if stabilization_moduli != "elastic" and not getattr(basis, "stabilization", 0.0):
+            raise ValueError(f"stabilization_moduli={stabilization_moduli!r} chooses the "
+                             "moduli of the SCNI stabilization, but this basis has none: "
+                             "build it with RKBasis(..., integration='scni', "
+                             "stabilization=alpha), alpha > 0")
         self.stabilization_moduli = stabilization_moduli
         self.basis, self.material, self.model = basis, material, model
         self.locking = locking

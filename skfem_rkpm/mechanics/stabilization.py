@@ -34,10 +34,18 @@ import scipy.sparse as sp
 from ..approximation.nodal_integration import jump_operator, stabilization_matrix
 from ..assembly import isotropic_tangent
 
-__all__ = ["STABILIZATION_MODULI", "stabilization_moduli", "Stabilization"]
+__all__ = ["STABILIZATION_MODULI", "checked_moduli", "stabilization_moduli", "Stabilization"]
 
 #: the moduli ``C`` of the SCNI stabilization energy
 STABILIZATION_MODULI = ("elastic", "shear", "tangent")
+
+
+def checked_moduli(moduli):
+    """``moduli`` if it names one of :data:`STABILIZATION_MODULI`, else a ValueError."""
+    if moduli not in STABILIZATION_MODULI:
+        raise ValueError(f"stabilization_moduli must be one of {STABILIZATION_MODULI}, "
+                         f"not {moduli!r}")
+    return moduli
 
 
 def stabilization_moduli(material, kind, dim):
@@ -45,16 +53,17 @@ def stabilization_moduli(material, kind, dim):
 
     ``"elastic"``: the isotropic elastic moduli ``λ δ_cl δ_dm + μ (δ_cd δ_lm
     + δ_cm δ_ld)``.  ``"shear"``: their deviatoric part only, ``λ`` replaced
-    by ``-2μ/3``: the energy ``μ |dev ε|²`` of the (three-dimensional)
-    deviator of the in-plane strain, blind to sub-cell volume changes (which
-    the nearly isochoric plastic flow of metals makes at no cost in the
-    material itself).  Positive semi-definite: in 3D its null space is the
-    volumetric strain; in 2D (``ε_zz = 0``) it keeps ``μ/3 (tr ε)²``.
+    by ``-2μ/3``: the energy ``½ ε:C:ε = μ |dev ε|²`` of the
+    (three-dimensional) deviator of the in-plane strain, blind to sub-cell
+    volume changes (which the nearly isochoric plastic flow of metals makes
+    at no cost in the material itself).  Positive semi-definite: in 3D its
+    null space is the volumetric strain; in 2D (``ε_zz = 0``) an in-plane
+    dilatation keeps the energy ``μ/6 (tr ε)²``.
 
     Parameters
     ----------
     material : J2Material
-        Gives ``E`` and ``ν``.
+        Gives the shear and bulk moduli ``G``, ``K``.
     kind : {"elastic", "shear"}
     dim : int
         Dimension of the gradients (2 or 3).
@@ -62,8 +71,8 @@ def stabilization_moduli(material, kind, dim):
     if kind not in ("elastic", "shear"):
         raise ValueError(f"constant stabilization moduli are 'elastic' or 'shear', "
                          f"not {kind!r}")
-    mu = material.E / (2.0 * (1.0 + material.nu))
-    lam = material.E * material.nu / ((1.0 + material.nu) * (1.0 - 2.0 * material.nu))
+    mu = material.G
+    lam = material.K - 2.0 * mu / 3.0
     return isotropic_tangent(lam if kind == "elastic" else -2.0 * mu / 3.0, mu, dim)
 
 
@@ -83,11 +92,8 @@ class Stabilization:
     """
 
     def __init__(self, basis, material, moduli, entries):
-        if moduli not in STABILIZATION_MODULI:
-            raise ValueError(f"stabilization_moduli must be one of {STABILIZATION_MODULI}, "
-                             f"not {moduli!r}")
         self.alpha = float(basis.stabilization)
-        self.moduli = moduli
+        self.moduli = checked_moduli(moduli)
         self.quadrature = basis.nodal_quadrature
         self.ncomp = basis.ncomp
         self.dim = basis.nodes.shape[0]

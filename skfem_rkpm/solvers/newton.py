@@ -368,7 +368,7 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
         if corrected:
             log(f"    {corrected} frozen contact statuses corrected, solving again")
     raise NonConvergence(f"the augmented Lagrangian needs more than {max_augmentations} "
-                         f"multiplier updates")
+                         f"multiplier updates or contact status corrections")
 
 
 def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,

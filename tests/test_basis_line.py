@@ -1,8 +1,9 @@
 """scikit-fem scripts that change only their ``Basis`` line (and ``asm``'s import).
 
 Eight problems of scikit-fem's documentation (docs/examples: ex01, ex09,
-ex03, ex14, ex11, ex10, ex19, ex43), each written once below as a
-scikit-fem user writes it, as a function of the two names a user changes:
+ex03, ex14, ex11, ex10, ex19, ex43) and a cantilever beam on hexahedra,
+each written once below as a scikit-fem user writes it, as a function of
+the two names a user changes:
 
 - the basis line, ``Basis(mesh, element, ...)`` →
   ``RKBasis(mesh, element, interpolating=True)``;
@@ -41,7 +42,8 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spl
 import skfem
-from skfem import (Basis, BilinearForm, ElementHex1, ElementQuad1, ElementQuad2, ElementTetP1,
+from skfem import (Basis, BilinearForm, ElementHex1, ElementHex2, ElementQuad1, ElementQuad2,
+                   ElementTetP1, LinearForm,
                    ElementTriP0, ElementTriP1, ElementTriRT0, ElementVector, MeshHex, MeshLine,
                    MeshQuad, MeshTet, MeshTri, build_pc_ilu, condense, penalize, solve,
                    solver_eigen_scipy_sym, solver_iter_pcg)
@@ -237,6 +239,47 @@ def test_ex11_elastic_block():
     (fem, _), (rk, right) = run(ex11, "fem"), run(ex11, "rk")
     assert right == pytest.approx(1.3, abs=1e-12)  # the right face moved by 0.3
     check_errors("ex11", abs(fem - BLOCK_ENERGY), abs(rk - BLOCK_ENERGY), 2.0)
+
+
+# ---------------------------------------------------------------------------
+# a cantilever beam on hexahedra, end load
+
+#: tip deflection of the beam below: triquadratic FEM (Hex2) on 10 x 2 x 2,
+#: 20 x 4 x 4, 40 x 8 x 8 cells gives -0.506064, -0.507776, -0.508341
+#: (differences falling by 3.0), extrapolated -0.50862, uncertain by about
+#: 1e-4 (Euler-Bernoulli: F L³ / 3EI = -0.5, plus shear and the clamped end)
+BEAM_TIP = -0.50862
+
+
+@LinearForm
+def end_load(v, w):
+    return -1e-3 * v[2]
+
+
+def cantilever(Basis, asm, nx=10, n=2, element=ElementVector(ElementHex1())):
+    m = MeshHex.init_tensor(np.linspace(0, 5, nx + 1), np.linspace(0, 1, n + 1),
+                            np.linspace(0, 1, n + 1)).with_defaults()
+    ib = Basis(m, element)
+    K = asm(linear_elasticity(*lame_parameters(1.0, 0.3)), ib)
+    f = asm(end_load, ib.boundary("right"))
+    u = solve(*condense(K, f, D=ib.get_dofs("left")))
+    return (ib.probes(np.array([[5.0], [0.5], [0.5]])) @ u)[2]
+
+
+def test_cantilever_beam_on_hexahedra():
+    fem, rk = run(cantilever, "fem"), run(cantilever, "rk")
+    check_errors("cantilever", abs(fem - BEAM_TIP), abs(rk - BEAM_TIP))
+
+
+@pytest.mark.slow
+def test_cantilever_reference():
+    quadratic = ElementVector(ElementHex2())
+    tips = np.array([cantilever(Basis, skfem.asm, nx, n, quadratic)
+                     for nx, n in ((10, 2), (20, 4), (40, 8))])
+    steps = np.diff(tips)
+    ratio = steps[0] / steps[1]
+    assert 2.5 < ratio < 4.5
+    assert tips[-1] + steps[-1] / (ratio - 1) == pytest.approx(BEAM_TIP, abs=2e-5)
 
 
 # ---------------------------------------------------------------------------

@@ -28,10 +28,16 @@ def mesh_area(mesh):
                          for j in range(n)))
 
 
+def mesh_named(name, request):
+    """A fixture mesh, or ``"graded_tris"``: a gmsh square graded 10:1 to a corner."""
+    if name == "graded_tris":
+        return gmsh_rectangle(1.0, 1.0, 0.1, kind="tri", h_corner=0.01)
+    return request.getfixturevalue(name)
+
+
 @pytest.mark.parametrize("mesh", ["distorted_quads", "distorted_tris", "graded_tris"])
 def test_smoothing_cells_tile_the_domain_and_close(mesh, request):
-    m = (gmsh_rectangle(1.0, 1.0, 0.1, kind="tri", h_corner=0.01) if mesh == "graded_tris"
-         else request.getfixturevalue(mesh))
+    m = mesh_named(mesh, request)
     cells = smoothing_cells(m)
     assert cells.area.min() > 0
     # the pieces tile every mesh cell: areas add up cell by cell and in total

@@ -13,7 +13,7 @@ from skfem_rkpm import Assembler, RKBasis, isotropic_tangent
 from skfem_rkpm.approximation.nodal_integration import smoothing_cells, stabilization_matrix
 from skfem_rkpm.approximation.voronoi_cells import mesh_triangles
 from skfem_rkpm.meshes import gmsh_rectangle
-from test_nodal_integration import assert_cells_close, mesh_area
+from test_nodal_integration import assert_cells_close, mesh_area, mesh_named
 from test_patch import field_gradient, linear_field, solve_patch
 
 C = isotropic_tangent(1.0, 1.0, 2)
@@ -35,8 +35,7 @@ def patch_error(mesh, smoothing, **options):
 
 @pytest.mark.parametrize("mesh", ["distorted_quads", "distorted_tris", "graded_tris"])
 def test_cells_are_the_voronoi_cells_and_tile_the_domain(mesh, request):
-    m = (gmsh_rectangle(1.0, 1.0, 0.1, kind="tri", h_corner=0.01) if mesh == "graded_tris"
-         else request.getfixturevalue(mesh))
+    m = mesh_named(mesh, request)
     cells = voronoi(m)
     assert cells.area.min() > 0
     np.testing.assert_allclose(cells.cell_area.sum(), mesh_area(m).sum(), rtol=1e-13)

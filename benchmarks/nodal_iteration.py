@@ -192,20 +192,20 @@ def time_iteration(case, n, scheme, repeat):
     )
 
 
-def beam_errors(level, scheme):
-    """Energy and L² errors of Timoshenko's beam, measured on 4x4 Gauss points."""
-    from skfem import LinearForm, asm
+def elastic_errors(problem, level, scheme):
+    """Energy and L² errors of a 2D elastic ``problem`` of
+    :mod:`skfem_rkpm.verification` (exact tractions on the whole boundary,
+    rigid motions fixed), measured on Gauss points of degree 7 on the cells."""
+    from skfem import LinearForm
     from skfem.helpers import dot
 
-    from skfem_rkpm import Assembler, RKBasis, isotropic_tangent, solve
+    from skfem_rkpm import Assembler, RKBasis, asm, isotropic_tangent, solve
     from skfem_rkpm.approximation.nodal_integration import stabilization_matrix
     from skfem_rkpm.assembly import facet_basis
-    from skfem_rkpm.verification import timoshenko_beam
     from skfem_rkpm.verification.elasticity import (error_norms, lame,
                                                     stress_from_voigt)
     from skfem_rkpm.verification.studies import rigid_motion_dofs
 
-    problem = timoshenko_beam()
     mesh = problem.mesh(level)
     basis = RKBasis(mesh, vector=True, support=2.0, **BEAM_SCHEMES[scheme])
     lam, mu = lame(problem.E, problem.nu, problem.plane)
@@ -224,8 +224,9 @@ def beam_errors(level, scheme):
     D = rigid_motion_dofs(nodes)
     d = solve(K, f, basis, D=D, x=problem.displacement(nodes).T.ravel()[D])
     judge = RKBasis(mesh, vector=True, support=2.0, integration="gauss", intorder=7)
-    return error_norms(judge, d, problem.displacement, problem.stress, problem.E,
-                       problem.nu, problem.plane, modulo_rigid=True)
+    return mesh.nvertices, *error_norms(judge, d, problem.displacement, problem.stress,
+                                        problem.E, problem.nu, problem.plane,
+                                        modulo_rigid=True)
 
 
 def block_field(x):
@@ -250,10 +251,10 @@ def block_errors(n, scheme):
     the whole boundary, rigid motions fixed at three corners): relative L²
     errors of u and ∇u, measured with Gauss degree 6 on the tetrahedra (same
     particles and shape functions)."""
-    from skfem import LinearForm, asm
+    from skfem import LinearForm
     from skfem.helpers import dot
 
-    from skfem_rkpm import Assembler, RKBasis, isotropic_tangent, solve
+    from skfem_rkpm import Assembler, RKBasis, asm, isotropic_tangent, solve
     from skfem_rkpm.approximation.nodal_integration import stabilization_matrix
     from skfem_rkpm.meshes import box
 
@@ -361,14 +362,20 @@ def cost_table(args):
 
 
 def accuracy_table(args):
-    print("Timoshenko beam (support 2, Gauss degree 4), errors on 4x4 Gauss points:\n")
-    print("| level | scheme | particles | energy error | L2 error |")
-    print("|---:|---|---:|---:|---:|")
-    for level in args.levels:
-        for s in BEAM_SCHEMES:
-            l2, energy = beam_errors(level, s)
-            n = (4 * level + 1) * (level + 1)
-            print(f"| {level} | {s} | {n} | {energy:.3e} | {l2:.3e} |")
+    from skfem_rkpm.verification import plate_with_hole, timoshenko_beam
+
+    for title, problem, levels in [
+            ("Timoshenko beam (support 2, Gauss degree 4)", timoshenko_beam(), args.levels),
+            ("Plate with a hole (Kirsch, graded gmsh triangles, support 2, Gauss degree 4)",
+             plate_with_hole(), [2 * level for level in args.levels])]:
+        print(f"{title}, errors on Gauss points of degree 7:\n")
+        print("| level | scheme | particles | energy error | L2 error |")
+        print("|---:|---|---:|---:|---:|")
+        for level in levels:
+            for s in BEAM_SCHEMES:
+                n, l2, energy = elastic_errors(problem, level, s)
+                print(f"| {level} | {s} | {n} | {energy:.3e} | {l2:.3e} |", flush=True)
+        print()
 
 
 if __name__ == "__main__":

@@ -64,6 +64,13 @@ RK_METHODS = {
     "RK2 c=3 4x4 VCI F-bar": ("rk", dict(support=3.0, order=2, intorder=6), "fbar"),
     "RK1 c=2 3x3 VCI": ("rk", dict(support=2.0), None),
     "RK1 c=3 3x3 VCI": ("rk", dict(support=3.0), None),
+    # nodal integration: one point per particle, no F-bar (nothing to average)
+    "RK1 c=2 SCNI": ("rk", dict(support=2.0, integration="scni"), None),
+    "RK1 c=2 SCNI α=1e-3": ("rk", dict(support=2.0, integration="scni",
+                                       stabilization=1e-3), None),
+    "RK1 c=2 SCNI Voronoi": ("rk", dict(support=2.0, integration="scni",
+                                        smoothing="voronoi"), None),
+    "RK1 c=2 DNI": ("rk", dict(support=2.0, integration="dni"), None),
 }
 FEM_METHODS = {
     "Q1": ("Q1", {}, None),

@@ -258,6 +258,7 @@ class RKBasis(CellViews, RKBase):
         everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes)
         table, btable, ntable = (cell_layout.table_rows(everything, a, b)
                                  for a, b in zip(sizes[:-1], sizes[1:]))
+        del everything  # its rows live on in the three tables
         self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
             nodes.shape[0] if vector else 1), format="csr")
         test_grads = table.grads
@@ -267,6 +268,8 @@ class RKBasis(CellViews, RKBase):
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric")
+        for built in (table, btable, ntable):  # only VCI reads them: 8 bytes per pair
+            built.kernel = None
         self._setup(mesh, geometry, table, test_grads, nodes, vector)
         self._restrict(elements)
 

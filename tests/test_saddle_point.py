@@ -112,6 +112,7 @@ def test_augmented_solve_equals_the_saddle_point_solve(case):
     solver = make_solver("superlu")
     D, L = solve_saddle_point(solver, K, F, C, G)
     assert solver.A.shape == (N, N)  # K + ρCᵀC was factored, not the saddle point
+    assert solver.system.startswith("K + ρCᵀC")  # and the Newton log says so
     assert D.shape == (N, 3) and L.shape == (m, 3)
     for j in range(3):
         d_ref, lam_ref, (spread_d, spread_lam) = saddle_point_reference(K, C, F[:, j],
@@ -165,6 +166,7 @@ def test_singular_augmented_matrix_falls_back_to_the_saddle_point():
     np.testing.assert_allclose(d, [0.5, 16.5], rtol=1e-12)
     np.testing.assert_allclose(lam, [16.0], rtol=1e-12)
     assert solver.A.shape == (3, 3)  # the saddle-point matrix
+    assert "saddle-point" in solver.system
 
 
 def test_block_3d_newton_run_is_the_same_as_with_the_saddle_point():

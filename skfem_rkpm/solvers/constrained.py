@@ -158,6 +158,7 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     m = C.shape[0]
     if m == 0:
         _factor(solver, K, spd=True)
+        solver.system = "K"
         return solver.solve(f), np.zeros((0,) + np.shape(f)[1:])
     C = sp.csr_matrix(C)
     f = np.asarray(f, dtype=float)
@@ -174,11 +175,13 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
         solution = _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol,
                                          maxiter)
         if solution is not None:
+            solver.system = "K + ρCᵀC (constraints by the augmented Lagrangian)"
             return solution
         backend = solver.backend("superlu") if isinstance(solver, Auto) else backend
     A = _saddle_matrix(K, C, dense=isinstance(backend, DenseLU))
     backend.factor(A)
     solver.A = A
+    solver.system = "the saddle-point matrix [[K, Cᵀ], [C, 0]]"
     sol = backend.solve(np.concatenate([f, g]))
     return sol[:N], -sol[N:]
 

@@ -311,8 +311,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                     return Result(d, history, solutions, False, message)
                 break
             problem.commit(ev)
-            if linear_solver.describe() != described:
-                described = linear_solver.describe()
+            if _solver_line(linear_solver) != described:
+                described = _solver_line(linear_solver)
                 log(f"linear solver: {described}")
             reactions = _reactions(prescribed, groups, rows.expand(lam))
             changes = sum(c.status_changes() for c in contributions
@@ -337,6 +337,12 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 f"(residual {res[-1]:.2e}, {record.seconds:.3f} s; next step "
                 f"{control.size:.3g})")
     return Result(d, history, solutions, True, "completed")
+
+
+def _solver_line(linear_solver):
+    """The linear solver and the matrix it factors, for the log."""
+    system = getattr(linear_solver, "system", None)
+    return linear_solver.describe() + (f", factoring {system}" if system else "")
 
 
 def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,

@@ -38,10 +38,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .kernels import get_kernel
-from .shape import (POINTS_PER_BLOCK, RCOND_MIN, ShapeTable, _batched_inverse,
-                    _dot, _kernel_weights, _moment_matrices, _monomial_recurrences,
-                    _monomials, _rcond, check_order, coordinates, find_pairs,
-                    monomial_exponents, rk_shape_functions)
+from .shape import (RCOND_MIN, ShapeTable, _batched_inverse, _dot, _kernel_weights,
+                    _moment_matrices, _monomial_recurrences, _rcond, blocked_pairs,
+                    check_order, coordinates, find_pairs, monomial_exponents,
+                    rk_shape_functions)
 
 __all__ = ["primitive_radius", "basis_primitive_radius", "interpolating_shape_functions",
            "shape_functions"]
@@ -186,30 +186,15 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
     if np.any(counts < m):
         return rk_shape_functions(x, nodes, radius, order, kernel, support, gradients,
                                   dilation, rcond_min, backend="numpy")
-    values = np.empty(len(inode))
-    kernel_values = np.empty(len(inode))
-    grads = np.empty((dim, len(inode))) if gradients else None
-    rcond = np.empty(npoints)
-    for start in range(0, npoints, POINTS_PER_BLOCK):
-        stop = min(start + POINTS_PER_BLOCK, npoints)
-        lo, hi = indptr[start], indptr[stop]
-        I = inode[lo:hi]
-        starts = indptr[start:stop] - lo
-        diff = np.take(x, ipoint[lo:hi], axis=1) - np.take(nodes, I, axis=1)
-        a = radius[I]
-        phi, dphi = _kernel_weights(diff, a, window, support)
+
+    def solve(diff, I, phi, dphi, H, inv_s, starts, block_counts):
         phat, dphat = _kernel_weights(diff, primitive[I], bump, "radial")
-        phat, dphat = phat / phi0, dphat / phi0
-        s = np.maximum.reduceat(a, starts)
-        inv_s = np.repeat(1.0 / s, counts[start:stop])
-        H = _monomials(diff * inv_s, build, m)
-        v, g, rc = _solve(H, lowered, phi, dphi, phat, dphat, inv_s, starts,
-                          counts[start:stop], gradients)
-        values[lo:hi] = v
-        kernel_values[lo:hi] = phi
-        if gradients:
-            grads[:, lo:hi] = g
-        rcond[start:stop] = rc
+        return _solve(H, lowered, phi, dphi, phat / phi0, dphat / phi0, inv_s, starts,
+                      block_counts, gradients)
+
+    values, grads, kernel_values, rcond = blocked_pairs(
+        x, nodes, radius, ipoint, inode, indptr, counts, window, support, build, m,
+        gradients, solve)
     if not np.all(rcond >= rcond_min):
         # the moment matrix is the standard one: its builder reports the points
         rk_shape_functions(x, nodes, radius, order, kernel, support, False,

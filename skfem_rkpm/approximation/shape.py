@@ -556,6 +556,46 @@ def check_order(order):
         raise ValueError(f"basis order must be a non-negative integer, not {order!r}")
 
 
+def blocked_pairs(x, nodes, radius, ipoint, inode, indptr, counts, window, support, build,
+                  m, gradients, solve):
+    """Shape functions at the point-particle pairs (Eq. 3.16-3.19), block by
+    block of ``POINTS_PER_BLOCK`` points, with the moment solve ``solve``.
+
+    Per block the pairs' offsets ``diff = x - X_I``, the kernel ``φ`` and its
+    derivative, the local length ``s(X)`` (the largest support covering the
+    point) and the monomials ``H((x - X_I)/s)`` are formed and passed to
+    ``solve(diff, I, phi, dphi, H, inv_s, starts, block_counts)``, which
+    returns the block's values, gradients and reciprocal condition numbers.
+
+    Returns ``values`` (npairs,), ``grads`` (dim, npairs) or None, the kernel
+    values (npairs,) and ``rcond`` (npoints,).
+    """
+    dim, npoints = x.shape
+    values = np.empty(len(inode))
+    kernel = np.empty(len(inode))
+    grads = np.empty((dim, len(inode))) if gradients else None
+    rcond = np.empty(npoints)
+    x, nodes = np.ascontiguousarray(x), np.ascontiguousarray(nodes)
+    for start in range(0, npoints, POINTS_PER_BLOCK):
+        stop = min(start + POINTS_PER_BLOCK, npoints)
+        lo, hi = indptr[start], indptr[stop]
+        I = inode[lo:hi]
+        starts = indptr[start:stop] - lo
+        diff = np.take(x, ipoint[lo:hi], axis=1) - np.take(nodes, I, axis=1)
+        a = radius[I]
+        phi, dphi = _kernel_weights(diff, a, window, support)
+        s = np.maximum.reduceat(a, starts)
+        inv_s = np.repeat(1.0 / s, counts[start:stop])
+        H = _monomials(diff * inv_s, build, m)
+        v, g, rc = solve(diff, I, phi, dphi, H, inv_s, starts, counts[start:stop])
+        values[lo:hi] = v
+        kernel[lo:hi] = phi
+        if gradients:
+            grads[:, lo:hi] = g
+        rcond[start:stop] = rc
+    return values, grads, kernel, rcond
+
+
 def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
     """Compute the table; return it with the failing points and the reason."""
     dim, npoints = x.shape
@@ -568,31 +608,14 @@ def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
     if too_few.size:
         return table, too_few, "too few particles cover it"
 
-    values = np.empty(len(inode))
-    kernel = np.empty(len(inode))
-    grads = np.empty((dim, len(inode))) if gradients else None
-    rcond = np.empty(npoints)
     build, lowered = _monomial_recurrences(exps)
-    x, nodes = np.ascontiguousarray(x), np.ascontiguousarray(nodes)
-    for start in range(0, npoints, POINTS_PER_BLOCK):
-        stop = min(start + POINTS_PER_BLOCK, npoints)
-        lo, hi = indptr[start], indptr[stop]
-        I = inode[lo:hi]
-        starts = indptr[start:stop] - lo
-        diff = np.take(x, ipoint[lo:hi], axis=1) - np.take(nodes, I, axis=1)
-        a = radius[I]
-        phi, dphi = _kernel_weights(diff, a, window, support)
-        # local length s(X): the largest support covering the point
-        s = np.maximum.reduceat(a, starts)
-        inv_s = np.repeat(1.0 / s, counts[start:stop])
-        H = _monomials(diff * inv_s, build, m)
-        v, g, rc = _moment_solve(H, lowered, phi, dphi, inv_s, starts,
-                                 counts[start:stop], gradients)
-        values[lo:hi] = v
-        kernel[lo:hi] = phi
-        if gradients:
-            grads[:, lo:hi] = g
-        rcond[start:stop] = rc
+
+    def solve(diff, I, phi, dphi, H, inv_s, starts, block_counts):
+        return _moment_solve(H, lowered, phi, dphi, inv_s, starts, block_counts, gradients)
+
+    values, grads, kernel, rcond = blocked_pairs(x, nodes, radius, ipoint, inode, indptr,
+                                                 counts, window, support, build, m,
+                                                 gradients, solve)
     table.values, table.grads, table.kernel = values, grads, kernel
     bad = np.flatnonzero(~(rcond >= rcond_min))
     return table, bad, ("the covering particles do not span the basis "

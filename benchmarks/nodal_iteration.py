@@ -257,6 +257,7 @@ def block_errors(n, scheme):
     from skfem_rkpm import Assembler, RKBasis, asm, isotropic_tangent, solve
     from skfem_rkpm.approximation.nodal_integration import stabilization_matrix
     from skfem_rkpm.meshes import box
+    from skfem_rkpm.verification.studies import cube_corner_dofs
 
     mesh = box(1.0, 1.0, 1.0, n, n, n, kind="tet")
     lam, mu = 1.0, 1.0
@@ -277,11 +278,7 @@ def block_errors(n, scheme):
         return dot(np.einsum("ij...,j...->i...", stress(np.asarray(w.x)), w.n), v)
 
     f = asm(load, basis.boundary())
-    corner = [int(np.argmin(np.linalg.norm(mesh.p - np.array(q)[:, None], axis=0)))
-              for q in ((0, 0, 0), (1, 0, 0), (0, 1, 0))]
-    D = np.r_[3 * corner[0] + np.arange(3), 3 * corner[1] + 1, 3 * corner[1] + 2,
-              3 * corner[2] + 2]
-    d = solve(K, f, basis, D=D, x=block_field(mesh.p).T.ravel())
+    d = solve(K, f, basis, D=cube_corner_dofs(mesh), x=block_field(mesh.p).T.ravel())
     judge = RKBasis(mesh, vector=True, support=2.0, integration="gauss", intorder=6)
     u = judge.interpolate(d)
     x = np.asarray(judge.global_coordinates())

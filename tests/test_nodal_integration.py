@@ -77,18 +77,30 @@ def test_smoothed_gradients_meet_the_integration_constraint(mesh, smoothing, req
     cells (their boundary vertices are not moved)."""
     m = request.getfixturevalue(mesh)
     basis = RKBasis(m, support=2.0, integration="scni", smoothing=smoothing)
-    A = basis.dx[:, 0]
-    lhs = np.stack([np.bincount(basis.table.indices, basis.table.grads[k]
-                                * A[basis.table.rows], minlength=basis.nnodes)
-                    for k in range(2)])
-    fb = basis.boundary()
-    w = (fb.dx[None] * fb.geometry.normals).reshape(2, -1)
-    rhs = np.stack([fb.table.matrix().T @ w[k] for k in range(2)])
+    lhs, rhs, grads = integration_constraint(basis)
     # |b_I| A_L ~ 1: round-off of the sums of about 50 terms
     np.testing.assert_allclose(lhs, rhs, atol=1e-14)
     assert np.abs(rhs).max() > 0.1  # particles near the boundary feel it
-    grads = np.stack([basis.table.gradient_matrix(k) @ m.p.T for k in range(2)], axis=1)
     np.testing.assert_allclose(grads, np.broadcast_to(np.eye(2), grads.shape), atol=1e-12)
+
+
+def integration_constraint(basis):
+    """Both sides of the integration constraint of a nodal basis,
+    ``Σ_L A_L b_I(X_L)`` and ``∮_Γ Ψ_I n dΓ`` (the right side from the facet
+    basis: scikit-fem's facet quadrature, independent of the cells), shape
+    (dim, nnodes), and the smoothed gradients of ``x`` at the particles,
+    (nnodes, dim, dim)."""
+    dim = basis.mesh.dim()
+    A = basis.dx[:, 0]
+    lhs = np.stack([np.bincount(basis.table.indices, basis.table.grads[k]
+                                * A[basis.table.rows], minlength=basis.nnodes)
+                    for k in range(dim)])
+    fb = basis.boundary()
+    w = (fb.dx[None] * fb.geometry.normals).reshape(dim, -1)
+    rhs = np.stack([fb.table.matrix().T @ w[k] for k in range(dim)])
+    grads = np.stack([basis.table.gradient_matrix(k) @ basis.mesh.p.T for k in range(dim)],
+                     axis=1)
+    return lhs, rhs, grads
 
 
 @pytest.mark.parametrize("mesh", ["distorted_quads", "distorted_tris"])

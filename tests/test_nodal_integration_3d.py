@@ -21,7 +21,9 @@ from skfem_rkpm.meshes import box, rectangle
 from skfem_rkpm.solvers.constrained import solve_constrained
 from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 from skfem_rkpm.verification.exact import uniaxial_compression
+from skfem_rkpm.verification.studies import cube_corner_dofs
 from test_basis_3d import perturbed_cube
+from test_nodal_integration import integration_constraint
 from test_plasticity import LAWS, E, NU
 
 LAM, MU = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))
@@ -115,17 +117,10 @@ def test_smoothed_gradients_meet_the_integration_constraint(name, request):
     and the smoothed gradients reproduce ∇x = I at every particle."""
     m = mesh_3d(name, request)
     basis = RKBasis(m, support=2.0, integration="scni")
-    V = basis.dx[:, 0]
-    lhs = np.stack([np.bincount(basis.table.indices, basis.table.grads[k]
-                                * V[basis.table.rows], minlength=basis.nnodes)
-                    for k in range(3)])
-    fb = basis.boundary()
-    w = (fb.dx[None] * fb.geometry.normals).reshape(3, -1)
-    rhs = np.stack([fb.table.matrix().T @ w[k] for k in range(3)])
+    lhs, rhs, grads = integration_constraint(basis)
     # |b_I| V_L ~ h²: round-off of the sums of ~100 terms
     np.testing.assert_allclose(lhs, rhs, atol=1e-15)
     assert np.abs(rhs).max() > 1e-3  # particles near the boundary feel it
-    grads = np.stack([basis.table.gradient_matrix(k) @ m.p.T for k in range(3)], axis=1)
     np.testing.assert_allclose(grads, np.broadcast_to(np.eye(3), grads.shape), atol=1e-12)
     # the piece gradients (kept for the stabilization) change nothing
     stabilized = RKBasis(m, support=2.0, integration="scni", stabilization=1.0)
@@ -143,12 +138,9 @@ def traction_patch(basis):
     m = basis.mesh
     K = Assembler(basis).bilinear(C)
     f = asm(load, basis.boundary())
-    corner = [int(np.argmin(np.linalg.norm(m.p - np.array(q)[:, None], axis=0)))
-              for q in ((0, 0, 0), (1, 0, 0), (0, 1, 0))]
-    D = np.r_[3 * corner[0] + np.arange(3), 3 * corner[1] + 1, 3 * corner[1] + 2,
-              3 * corner[2] + 2]
-    d = solve(K, f, basis, D=D, x=linear_field(m.p).T.ravel())
+    d = solve(K, f, basis, D=cube_corner_dofs(m), x=linear_field(m.p).T.ravel())
     return patch_errors(basis, d)
+
 
 
 def patch_errors(basis, d):

@@ -26,7 +26,7 @@ from .exact import (kirsch_displacement, kirsch_stress, timoshenko_displacement,
 from ..meshes import gmsh_plate_with_hole, rectangle
 
 __all__ = ["Problem", "timoshenko_beam", "plate_with_hole", "solve_problem",
-           "rigid_motion_dofs", "convergence_study", "rates"]
+           "rigid_motion_dofs", "cube_corner_dofs", "convergence_study", "rates"]
 
 
 @dataclass
@@ -83,6 +83,17 @@ def rigid_motion_dofs(x):
     direction = x[:, b] - x[:, a]
     perpendicular = 1 if abs(direction[0]) >= abs(direction[1]) else 0
     return np.array([2 * a, 2 * a + 1, 2 * b + perpendicular])
+
+
+def cube_corner_dofs(mesh):
+    """Six dofs that fix the rigid motions of a 3D body in the unit cube
+    (dofs interleaved, 3 per particle): all three at the particle nearest
+    (0, 0, 0), y and z at the one nearest (1, 0, 0), z at the one nearest
+    (0, 1, 0)."""
+    corner = [int(np.argmin(np.linalg.norm(mesh.p - np.array(q)[:, None], axis=0)))
+              for q in ((0, 0, 0), (1, 0, 0), (0, 1, 0))]
+    return np.r_[3 * corner[0] + np.arange(3), 3 * corner[1] + 1, 3 * corner[1] + 2,
+                 3 * corner[2] + 2]
 
 
 def solve_problem(problem, basis):

@@ -23,6 +23,7 @@ from . import cell_layout
 from .basis_views import CellViews, FacetViews
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
+from .reduction import WHOLE
 from .rk_base import RKBase
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
@@ -85,6 +86,33 @@ def _check_distinct(nodes, radius):
             f"particles {i} and {j} coincide at ({where}) ({len(pairs)} such pairs): "
             "their shape functions would be identical and the stiffness matrix "
             "singular; remove the duplicate vertices or particles")
+
+
+def _part_cells(mesh, elements, integration, reduction):
+    """The cells of a part of a partitioned basis (sorted), or None for a
+    basis on all cells (``reduction`` None)."""
+    if reduction is None:
+        return None
+    if elements is None:
+        raise ValueError("a part of a partitioned basis (reduction=...) needs its "
+                         "cells: give elements=")
+    if integration not in ("vci", "gauss"):
+        raise ValueError(f"a partitioned basis integrates with 'vci' or 'gauss', not "
+                         f"{integration!r}")
+    cells = np.unique(np.asarray(mesh.normalize_elements(elements), dtype=np.int64))
+    if cells.size == 0 or cells[0] < 0 or cells[-1] >= mesh.nelements:
+        raise ValueError(f"the cells of a part must be between 0 and {mesh.nelements - 1} "
+                         f"(the mesh's cells), and at least one; got {cells.size} "
+                         "cells" + (f" from {cells[0]} to {cells[-1]}" if cells.size else ""))
+    return cells
+
+
+def _part_boundary(mesh, cells):
+    """The boundary facets of the cells ``cells`` (None: all of them)."""
+    facets = mesh.boundary_facets()
+    if cells is None:
+        return None
+    return facets[np.isin(mesh.f2t[0, facets], cells)]
 
 
 class RKBasis(CellViews, RKBase):
@@ -158,12 +186,22 @@ class RKBasis(CellViews, RKBase):
     interpolating : bool
         ``Ψ_I(X_J) = δ_IJ`` (:mod:`skfem_rkpm.approximation.interpolating`):
         coefficients are nodal values, ``nodal_matrix`` is the identity.
+    reduction : optional
+        Build a *part* of a partitioned basis (:mod:`.reduction`, e.g. one
+        MPI rank's, :mod:`skfem_rkpm.solvers.partitioned`): the shape
+        functions are computed only at the quadrature points of the cells
+        ``elements`` (and of the boundary facets of those cells), and the
+        VCI sums over the points are added up over the parts by
+        ``reduction``, so that the gradients equal those of the whole basis
+        restricted to ``elements``.  Needs ``elements`` and
+        ``integration="vci"`` or ``"gauss"``.
     """
 
     def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
                  support_shape="radial", intorder=4, integration=None,
                  nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
-                 elements=None, interpolating=False, smoothing="median_dual"):
+                 elements=None, interpolating=False, smoothing="median_dual",
+                 reduction=None):
         vector = field_is_vector(vector)
         if integration is None:
             integration = default_integration(interpolating, order, axisymmetric)
@@ -193,6 +231,7 @@ class RKBasis(CellViews, RKBase):
         if stabilization and integration != "scni":
             raise ValueError(f"stabilization={stabilization} needs integration='scni' "
                              f"(not {integration!r})")
+        part = _part_cells(mesh, elements, integration, reduction)
         if nodes is None:
             nodes = coordinates(mesh_vertices(mesh), "mesh vertex")
             spacing = local_spacing(mesh)[:nodes.shape[1]]
@@ -244,8 +283,8 @@ class RKBasis(CellViews, RKBase):
             return
 
         try:
-            geometry = cell_geometry(mesh, intorder)
-            boundary = facet_geometry(mesh, intorder)
+            geometry = cell_geometry(mesh, intorder, part)
+            boundary = facet_geometry(mesh, intorder, _part_boundary(mesh, part))
         except NotImplementedError:
             raise ValueError(f"scikit-fem has no Gauss rule of degree {intorder} for "
                              f"{type(mesh).__name__} cells; use a lower intorder") from None
@@ -267,11 +306,14 @@ class RKBasis(CellViews, RKBase):
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
-                symmetric=integration == "vci_symmetric")
+                symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE)
         for built in (table, btable, ntable):  # only VCI reads them: 8 bytes per pair
             built.kernel = None
         self._setup(mesh, geometry, table, test_grads, nodes, vector)
-        self._restrict(elements)
+        if part is None:
+            self._restrict(elements)
+        else:
+            self.tind = part
 
     @property
     def segment_points(self):

@@ -37,6 +37,7 @@ from skfem import CellBasis, FacetBasis
 
 from .kernels import get_kernel
 from .laplacian import laplacian_solve
+from .reduction import WHOLE
 from .shape import _window, monomial_exponents
 
 __all__ = ["cell_geometry", "facet_geometry", "vci_gradients"]
@@ -46,9 +47,10 @@ def _lagrange_element(mesh):
     return type(mesh).elem()
 
 
-def cell_geometry(mesh, intorder):
-    """A scikit-fem basis that supplies cell quadrature points and weights."""
-    return CellBasis(mesh, _lagrange_element(mesh), intorder=intorder)
+def cell_geometry(mesh, intorder, elements=None):
+    """A scikit-fem basis that supplies cell quadrature points and weights
+    (on the cells ``elements`` only, if given)."""
+    return CellBasis(mesh, _lagrange_element(mesh), intorder=intorder, elements=elements)
 
 
 def facet_geometry(mesh, intorder, facets=None, quadrature=None):
@@ -95,7 +97,7 @@ def _pair_kernel(table, x, nodes, radius, kernel, support):
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                   nodes, radius, order, kernel="cubic", support="radial",
-                  axisymmetric=False, symmetric=False):
+                  axisymmetric=False, symmetric=False, reduction=WHOLE):
     """Test-function gradients corrected for variational consistency.
 
     Parameters
@@ -123,6 +125,12 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         same corrected gradients serve trial and test functions, the
         stiffness is symmetric and the linear patch test still passes.
         Basis order 1, not axisymmetric.
+    reduction : optional
+        For a basis on part of the cells (:mod:`.reduction`): the points of
+        ``table`` and ``xb`` are this part's, and the moments, right-hand
+        sides and balancing matrix, sums over the points, are added up over
+        the parts before the coefficients are solved for (on every part
+        alike).  Not for ``symmetric``.
 
     Returns
     -------
@@ -153,10 +161,11 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     # φ_I(x_q) as a sparse (points × particles) matrix; its index arrays
     # (converted once) serve every other quantity given at the pairs
     kernel_matrix = _pair_matrix(table, phi)
-    A = _moment_integrals(kernel_matrix, p, weights, m)  # A_I = ∫ φ_I p pᵀ
-    rhs = _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, normals,
-                          nodes, scale, exps, dp, p, axisymmetric)
-    covered = np.bincount(cols, minlength=nnodes)
+    A = reduction.sum(_moment_integrals(kernel_matrix, p, weights, m))  # A_I = ∫ φ_I p pᵀ
+    rhs = reduction.sum(_constraint_rhs(kernel_matrix, table, x, weights, boundary_table,
+                                        xb, wb, normals, nodes, scale, exps, dp, p,
+                                        axisymmetric))
+    covered = reduction.sum(np.bincount(cols, minlength=nnodes))
     det = np.linalg.det(A)
     bad = np.flatnonzero((covered < m) | ~(np.abs(det) > 1e-14 * np.abs(A[:, 0, 0]) ** m))
     if bad.size:
@@ -168,6 +177,9 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
             "quadrature order"
         )
     if symmetric:
+        if reduction.parts > 1:
+            raise ValueError("symmetric VCI is not built for a basis on part of the "
+                             "cells; use integration='vci'")
         if order != 1 or axisymmetric:
             raise ValueError("symmetric VCI is built for basis order 1 in plane or 3D "
                              f"problems (here order {order}"
@@ -177,7 +189,8 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                                                    nodes, radius)
     H = _weighted_kernel_matrix(kernel_matrix, p)
     Phi = kernel_matrix @ np.ones(nnodes)  # Φ_q = Σ_K φ_K(x_q)
-    xi = _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius)  # (nnodes, m, dim)
+    xi = _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius,
+                                reduction)  # (nnodes, m, dim)
     counts = np.diff(table.indptr)
     # ā(x_q) = Σ_J S_J a_J = (H ξ)_q / Φ_q, with S_J = φ_J / Φ the Shepard functions
     mean = (H @ xi.reshape(nnodes * m, dim)) / Phi[:, None]  # (nq, dim)
@@ -268,7 +281,7 @@ def _constraint_rhs(kernel_matrix, table, x, weights, boundary_table, xb, wb, no
     return rhs
 
 
-def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
+def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius, reduction=WHOLE):
     """Coefficients ξ_I of the balanced correction (one sparse SPD solve).
 
     The correction ``c_I = φ_I (a_I - Σ_J S_J a_J)``, ``a_I = ξ_I · p_I`` and
@@ -291,7 +304,9 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     particles and their support radii, shape its coarse space).  Otherwise
     ``ξ`` of one particle per body is set to zero and its constraints,
     implied by the others, are dropped: the rest of ``M`` is positive
-    definite, and is solved by :func:`_pinned_spd_solve`.
+    definite, and is solved by :func:`_pinned_spd_solve`.  ``A`` and
+    ``rhs`` are whole-domain sums; ``reduction`` adds up this part's
+    ``Hᵀ diag(w_q / Φ_q) H``.
     """
     nnodes, m, _ = A.shape
     dim = rhs.shape[1]
@@ -299,7 +314,7 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius):
     scaled = np.repeat(weights / Phi, np.diff(H.indptr))  # w_q / Φ_q at each entry
     scaled *= H.data
     WH = sp.csr_matrix((scaled, H.indices, H.indptr), shape=H.shape)
-    M = WH.T @ H
+    M = reduction.sum_sparse(WH.T @ H)
     M = (sp.bsr_matrix((A, np.arange(nnodes), np.arange(nnodes + 1)), shape=(n, n))
          - M).tocsr()
     nbodies, body = connected_components(M, directed=False)

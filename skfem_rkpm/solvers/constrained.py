@@ -152,7 +152,12 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     accepted, else, or when ``K_ρ`` is singular, SuperLU factors the
     saddle-point matrix itself; an SPD-only backend asked for by name
     raises instead.  ``maxiter`` bounds the GMRES iterations of one solve.
+    The shares of a partitioned tangent (``K.partial``,
+    :class:`~skfem_rkpm.solvers.partitioned.PartialMatrix`) go to the
+    saddle-point solve of their own.
     """
+    if getattr(K, "partial", False):  # the ranks' shares of a partitioned tangent
+        return K.solve_saddle_point(solver, f, C, g)
     N = K.shape[0]
     K = _canonical(K)
     m = C.shape[0]

@@ -1,0 +1,38 @@
+"""Sums over the parts of a partitioned domain.
+
+A basis built on part of the background cells (one MPI rank's cells,
+:mod:`skfem_rkpm.solvers.partitioned`) integrates only over its own
+quadrature points.  The quantities that integrate over a particle's whole
+support (the VCI moments and constraint right-hand sides of
+:mod:`.integration`) are then partial sums, and a *reduction* adds them up
+over all parts, so that every part continues with the whole-domain sums.
+
+A reduction has two methods, both collective (every part calls them in the
+same order with arrays of the same shape) and both returning the same
+result on every part:
+
+``sum(array)``
+    The elementwise sum of a dense array over the parts.
+``sum_sparse(matrix)``
+    The sum of a scipy sparse matrix over the parts, in CSR.
+
+:data:`WHOLE` is the reduction of an unpartitioned domain: one part,
+nothing to add.
+"""
+
+__all__ = ["WholeDomain", "WHOLE"]
+
+
+class WholeDomain:
+    """The reduction of a domain in one part: sums are what they are."""
+
+    parts = 1
+
+    def sum(self, array):
+        return array
+
+    def sum_sparse(self, matrix):
+        return matrix.tocsr()
+
+
+WHOLE = WholeDomain()

@@ -1,0 +1,386 @@
+"""Partitioned assembly: each MPI rank integrates over its own cells.
+
+Under ``mpiexec -n P`` the background cells are split among the ranks by
+recursive coordinate bisection of their centres (:func:`partition`), and
+every rank builds its part of the basis (``RKBasis(..., elements=cells,
+reduction=...)``): shape functions only at its own quadrature points, for
+the particles these reach, with the VCI sums added up over the ranks
+(:class:`MPIReduction`).  A :class:`~skfem_rkpm.mechanics.problem.SolidProblem`
+on that part updates only its own material points and assembles only its
+own cells, so the memory of the basis, the material state and the local
+matrices falls as ``1/P``.
+
+:class:`PartitionedSolid` puts the parts together for the Newton loop of
+:func:`~skfem_rkpm.solvers.newton.newton_steps`, which runs unchanged on
+every rank:
+
+- the internal force is summed over the ranks (``MPI_Allreduce`` of a
+  vector of the dofs), so every rank holds the same residual and takes the
+  same decisions (convergence, line search, cut-backs);
+- a failure at a material point of one rank (inverted cell, return map,
+  NaN) is raised on every rank;
+- the tangent stays distributed: each rank's share is a
+  :class:`PartialMatrix`, to which the terms every rank computes alike
+  (contact, the penalty of the constraints) are added on rank 0 only, and
+  :class:`DistributedLU` sums the shares into a PETSc MPIAIJ matrix (COO
+  assembly: each rank sends only the entries of rows it does not own) and
+  factors it with MUMPS.
+
+Vectors of the dofs (coefficients, forces) are replicated: ``16 N`` bytes
+per rank for ``N`` dofs, small beside the shape tables.  The VCI balancing
+matrix (particles × particles) is summed and solved on every rank alike.
+"""
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..mechanics.materials import ReturnMapError
+from ..mechanics.problem import InvertedElementError, NonFiniteError
+from .backend import Solver, _import_backend, _refine
+from .petsc import bisection
+
+__all__ = ["MPIReduction", "partition", "Partition", "PartialMatrix", "PartitionedSolid",
+           "DistributedLU"]
+
+#: errors of a material point that stop an evaluation: raised on every rank
+_POINT_ERRORS = (InvertedElementError, NonFiniteError, ReturnMapError)
+#: bytes of a failing rank's message passed to the others
+_MESSAGE_BYTES = 1024
+
+
+class MPIReduction:
+    """Sums over the MPI ranks (:mod:`skfem_rkpm.approximation.reduction`).
+
+    Parameters
+    ----------
+    comm : mpi4py communicator, optional
+        Default ``MPI.COMM_WORLD``.
+    """
+
+    def __init__(self, comm=None):
+        if comm is None:
+            from mpi4py import MPI
+
+            comm = MPI.COMM_WORLD
+        self.comm = comm
+        self.rank, self.parts = comm.Get_rank(), comm.Get_size()
+
+    def sum(self, array):
+        array = np.ascontiguousarray(array)
+        out = np.empty_like(array)
+        self.comm.Allreduce(array, out)
+        return out
+
+    def sum_sparse(self, matrix):
+        """All ranks' COO entries gathered on every rank, in rank order, and
+        summed: every rank gets the same matrix, bit for bit."""
+        coo = matrix.tocoo()
+        counts = np.array(self.comm.allgather(coo.nnz), dtype=np.int64)
+        rows, cols, data = (self._gather(np.ascontiguousarray(a, dtype=t), counts)
+                            for a, t in ((coo.row, np.int64), (coo.col, np.int64),
+                                         (coo.data, np.float64)))
+        return sp.csr_matrix((data, (rows, cols)), shape=matrix.shape)
+
+    def _gather(self, local, counts):
+        out = np.empty(int(counts.sum()), dtype=local.dtype)
+        self.comm.Allgatherv(local, (out, counts))
+        return out
+
+
+class Partition:
+    """Which rank integrates each cell and owns each particle's rows.
+
+    Attributes
+    ----------
+    cells : ndarray, shape (ncells,)
+        The rank of every background cell.
+    particles : ndarray, shape (nparticles,)
+        The rank owning the rows (dofs) of every particle: the lowest rank
+        among the cells it is a vertex of, so that rows sit where most of
+        their entries are assembled.
+    parts : int
+    """
+
+    def __init__(self, cells, particles, parts):
+        self.cells, self.particles, self.parts = cells, particles, int(parts)
+
+    def cells_of(self, rank):
+        """The cells rank ``rank`` integrates."""
+        return np.flatnonzero(self.cells == rank)
+
+    def dof_owners(self, ncomp):
+        """The owner of every dof ``ncomp * I + c``."""
+        return np.repeat(self.particles, ncomp)
+
+
+def partition(mesh, parts, nodes=None):
+    """Split the cells of ``mesh`` into ``parts`` by recursive coordinate
+    bisection of the cell centres (equal numbers of cells, compact parts).
+
+    ``nodes`` (dim x n): the particles, if they are not the mesh vertices;
+    they are then assigned by bisection of their own positions.
+    """
+    parts = int(parts)
+    if not 1 <= parts <= mesh.nelements:
+        raise ValueError(f"cannot split {mesh.nelements} cells into {parts} parts: "
+                         "use at most one rank per cell")
+    centres = mesh.p[:, mesh.t].mean(axis=1)
+    cells = bisection(centres, parts)
+    if nodes is None:
+        particles = np.full(mesh.nvertices, parts, dtype=np.int64)
+        np.minimum.at(particles, mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]))
+        particles[particles == parts] = 0  # vertices without cells
+    else:
+        particles = bisection(np.asarray(nodes, dtype=float), parts)
+    return Partition(cells, particles, parts)
+
+
+class PartialMatrix:
+    """One rank's share of a matrix that is the sum of all ranks' shares.
+
+    Adding a matrix that every rank computes alike (a replicated term)
+    adds it to rank 0's share only, so the sum counts it once; adding
+    another share adds the shares.  ``A @ x`` and ``A.diagonal()`` are
+    those of the summed matrix (collective).
+    """
+
+    partial = True
+
+    def __init__(self, local, reduction, root):
+        self.local = sp.csr_matrix(local)
+        self.reduction, self.root = reduction, root
+        self.shape = self.local.shape
+
+    def _like(self, local):
+        return PartialMatrix(local, self.reduction, self.root)
+
+    def __add__(self, other):
+        if isinstance(other, PartialMatrix):
+            return self._like(self.local + other.local)
+        if np.isscalar(other) and other == 0:
+            return self
+        return self._like(self.local + other) if self.root else self
+
+    __radd__ = __add__
+
+    def __matmul__(self, x):
+        return self.reduction.sum(self.local @ x)
+
+    def diagonal(self):
+        return self.reduction.sum(self.local.diagonal())
+
+    def solve_saddle_point(self, solver, f, C, g):
+        """``K d = f + Cᵀ λ``, ``C d = g`` by ``solver`` (a solver of
+        shares, ``sums_shares``: :class:`DistributedLU`) on the summed
+        saddle-point matrix."""
+        if not getattr(solver, "sums_shares", False):
+            raise TypeError(f"a partitioned problem is solved by DistributedLU, not "
+                            f"{type(solver).__name__}: run newton_steps with "
+                            "linear_solver=DistributedLU(partition, reduction)")
+        N, m = self.shape[0], C.shape[0]
+        if m == 0:
+            solver.factor(self)
+            solver.system = "K"
+            return solver.solve(f), np.zeros((0,) + np.shape(f)[1:])
+        C = sp.csr_matrix(C)
+        if self.root:
+            local = sp.bmat([[self.local, C.T], [C, None]], format="csr")
+        else:
+            local = sp.bmat([[self.local, None], [None, sp.csr_matrix((m, m))]],
+                            format="csr")
+        solver.factor(self._like(local), constraint_rows=C)
+        solver.system = "the saddle-point matrix [[K, Cᵀ], [C, 0]]"
+        sol = solver.solve(np.concatenate([f, g]))
+        return sol[:N], -sol[N:]
+
+
+class PartitionedSolid:
+    """A :class:`~skfem_rkpm.mechanics.problem.SolidProblem` on this rank's
+    cells, seen by the Newton loop as the whole solid.
+
+    ``evaluate(d)`` returns the evaluation of this rank's material points
+    with the internal force summed over the ranks and the tangent as a
+    :class:`PartialMatrix`; the committed state is this rank's.
+    """
+
+    def __init__(self, problem, reduction, rank):
+        self.problem, self.reduction, self.rank = problem, reduction, int(rank)
+        self.basis, self.material, self.model = problem.basis, problem.material, problem.model
+
+    @property
+    def N(self):
+        return self.problem.N
+
+    @property
+    def state(self):
+        return self.problem.state
+
+    def evaluate(self, d, state=None, tangent=True):
+        error = None
+        try:
+            evaluation = self.problem.evaluate(d, state, tangent)
+        except _POINT_ERRORS as err:
+            error = err
+        self._raise_together(error)
+        evaluation.f_int = self.reduction.sum(evaluation.f_int)
+        form = evaluation._form_tangent
+        if form is not None:
+            evaluation._form_tangent = lambda: PartialMatrix(form(), self.reduction,
+                                                             self.rank == 0)
+        return evaluation
+
+    def _raise_together(self, error):
+        """Raise the error of the lowest failing rank on every rank (the
+        same type and message, with the rank named)."""
+        failed = np.zeros(self.reduction.parts)
+        failed[self.rank] = error is not None
+        failed = np.flatnonzero(self.reduction.sum(failed))
+        if not failed.size:
+            return
+        first = int(failed[0])
+        code = np.zeros(_MESSAGE_BYTES + 1)
+        if self.rank == first:
+            text = str(error).encode()[:_MESSAGE_BYTES]
+            code[0] = 1 + _POINT_ERRORS.index(type(error))
+            code[1:1 + len(text)] = np.frombuffer(text, dtype=np.uint8)
+        code = self.reduction.sum(code)
+        kind = _POINT_ERRORS[int(code[0]) - 1]
+        text = bytes(code[1:].astype(np.uint8)).rstrip(b"\0").decode(errors="replace")
+        points = error.points if self.rank == first else np.zeros(0, dtype=np.int64)
+        raise kind(f"on rank {first}: {text}", points)
+
+    def commit(self, evaluation):
+        self.problem.commit(evaluation)
+
+    def cauchy_stress(self, evaluation):
+        return self.problem.cauchy_stress(evaluation)
+
+
+class DistributedLU(Solver):
+    """MUMPS LU through PETSc of a matrix given as the ranks' shares
+    (:class:`PartialMatrix`).
+
+    Each rank owns the rows of its particles (``partition.particles``;
+    multiplier rows go with the particle of their largest constraint
+    entry).  The shares are summed by PETSc's COO assembly into an MPIAIJ
+    matrix; the pattern (and MUMPS's analysis) is kept until a share's
+    pattern changes on some rank.  The solution is gathered to every rank
+    and refined against the summed matrix.
+    """
+
+    name = "petsc"
+    #: factors the sum of the ranks' :class:`PartialMatrix` shares
+    sums_shares = True
+
+    def __init__(self, partition, reduction, factor_solver="mumps"):
+        super().__init__(symmetric=False, factor_solver=factor_solver)
+        _import_backend(self.name)
+        from petsc4py import PETSc
+
+        self.PETSc, self.comm = PETSc, PETSc.COMM_WORLD
+        self.partition, self.reduction = partition, reduction
+        self.rank = self.comm.getRank()
+        self._mat = self._ksp = None
+        self._key = None
+        self.system = None
+
+    def factor(self, A, constraint_rows=None):
+        clock = time.perf_counter()
+        n = A.shape[0]
+        ncomp = max(A.shape[0] - (0 if constraint_rows is None else constraint_rows.shape[0]),
+                    0) // len(self.partition.particles)
+        owner = self._owners(n, ncomp, constraint_rows)
+        coo = A.local.tocoo()
+        key = (n, coo.nnz, hash(coo.row.tobytes()), hash(coo.col.tobytes()),
+               hash(owner.tobytes()))
+        changed = self.reduction.sum(np.array([float(key != self._key)]))[0] > 0
+        if changed:
+            self._analyze_shares(owner, coo)
+            self._key = key
+            self.stats["analyses"] += 1
+        self._mat.setValuesCOO(coo.data, addv=self.PETSc.InsertMode.INSERT_VALUES)
+        self._mat.assemble()
+        try:
+            self._ksp.setUp()
+        except self.PETSc.Error as err:
+            raise np.linalg.LinAlgError(f"{self.describe()}: PETSc error {err.ierr} in "
+                                        "the factorization") from err
+        self.A = A
+        self.stats["factorizations"] += 1
+        self.stats["factor_seconds"] += time.perf_counter() - clock
+        return self
+
+    def _owners(self, n, ncomp, C):
+        """The rank of every row: the particle's, then the multipliers'."""
+        owner = np.zeros(n, dtype=np.int64)
+        dofs = self.partition.dof_owners(max(ncomp, 1))
+        owner[:len(dofs)] = dofs
+        if C is not None and C.shape[0]:
+            big = np.abs(sp.csr_matrix(C)).argmax(axis=1)
+            owner[len(dofs):] = dofs[np.asarray(big).ravel()]
+        return owner
+
+    def _analyze_shares(self, owner, coo):
+        PETSc = self.PETSc
+        n = len(owner)
+        order = np.argsort(owner, kind="stable")  # new row k is old row order[k]
+        new = np.empty(n, dtype=np.int64)
+        new[order] = np.arange(n)
+        counts = np.bincount(owner, minlength=self.comm.getSize())
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        r0, r1 = int(bounds[self.rank]), int(bounds[self.rank + 1])
+        self._order, self._rows = order, (r0, r1)
+        self._destroy()
+        self._mat = PETSc.Mat().create(comm=self.comm)
+        self._mat.setSizes(((r1 - r0, n), (r1 - r0, n)))
+        self._mat.setType(PETSc.Mat.Type.AIJ)
+        self._mat.setPreallocationCOO(new[coo.row].astype(PETSc.IntType),
+                                      new[coo.col].astype(PETSc.IntType))
+        self._b, self._x = self._mat.createVecs()
+        self._gather, self._xall = PETSc.Scatter.toAll(self._x)
+        self._ksp = PETSc.KSP().create(comm=self.comm)
+        self._ksp.setOperators(self._mat)
+        self._ksp.setType("preonly")
+        pc = self._ksp.getPC()
+        pc.setType("lu")
+        pc.setFactorSolverType(self.options["factor_solver"])
+        self._ksp.setErrorIfNotConverged(True)
+        self._ksp.setFromOptions()
+
+    def _solve_one(self, b):
+        r0, r1 = self._rows
+        self._b.setArray(b[self._order[r0:r1]])
+        try:
+            self._ksp.solve(self._b, self._x)
+        except self.PETSc.Error as err:
+            raise np.linalg.LinAlgError(f"{self.describe()}: PETSc error {err.ierr} in "
+                                        "the solve") from err
+        self._gather.scatter(self._x, self._xall, addv=self.PETSc.InsertMode.INSERT,
+                             mode=self.PETSc.ScatterMode.FORWARD)
+        x = np.empty(len(b))
+        x[self._order] = self._xall.getArray(readonly=True)
+        return x
+
+    def _solve(self, b):
+        if b.ndim == 2:
+            return np.column_stack([self._solve(col) for col in b.T])
+        return _refine(self.A, b, self._solve_one(b), self._solve_one)
+
+    def describe(self):
+        size = self.comm.getSize()
+        return (f"PETSc {self.options['factor_solver'].upper()} LU of the ranks' summed "
+                f"shares ({size} MPI rank{'s' if size > 1 else ''})")
+
+    def _destroy(self):
+        for name in ("_ksp", "_mat", "_b", "_x", "_xall", "_gather"):
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.destroy()
+            setattr(self, name, None)
+
+    def reset(self):
+        super().reset()
+        self._key = None
+        self._destroy()

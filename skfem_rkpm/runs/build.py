@@ -22,6 +22,8 @@ from ..mechanics.rigid_contact import RigidContact, ToolSideError
 from ..mechanics.surface_contact import SurfaceContact
 from ..meshes import plane_normal
 from ..solvers.newton import Prescribed
+from ..solvers.partitioned import MPIReduction, PartitionedSolid, partition
+from ..solvers.petsc import world
 from .memory import check_rk_memory
 from .scene_tools import tool_from
 from .scene import (DEFAULT_STABILIZATION, SceneError, components, material_from,
@@ -56,6 +58,9 @@ class Simulation:
     tools: list = field(default_factory=list)
     points: dict = field(default_factory=dict)
     follower_loads: list = field(default_factory=list)
+    #: the cells and rows of each MPI rank when the problem is partitioned
+    #: (:class:`~skfem_rkpm.solvers.partitioned.Partition`), else None
+    partition: object = None
 
     @property
     def contributions(self):
@@ -112,6 +117,9 @@ def build(scene, method=None, trust_geo=False):
     check_mesh(scene, mesh)
     boundaries = set((mesh.boundaries or {}).keys())
     disc = scene["discretization"]
+    part = _partition(scene, method, mesh)
+    cells = None if part is None else part.cells_of(world()[0])
+    reduction = None if part is None else MPIReduction()
     if method == "rkpm":
         check_rk_memory(mesh, spacing_radius(mesh, disc), disc["order"],
                         disc["support_shape"], disc["quadrature"])
@@ -134,14 +142,16 @@ def build(scene, method=None, trust_geo=False):
                         radius=(spacing_radius(mesh, disc)
                                 if disc["support"] is not None else None),
                         support=disc["dilation"], stabilization=stabilization or 0.0,
-                        interpolating=disc["interpolating"], smoothing=disc["smoothing"])
+                        interpolating=disc["interpolating"], smoothing=disc["smoothing"],
+                        elements=cells, reduction=reduction)
     else:
         element = ELEMENTS[disc["element"] or LINEAR_OF.get(type(mesh).__name__, "quad1")]()
         if element.refdom != mesh.refdom:
             name = type(mesh).__name__
             raise SceneError(f"discretization.element: {disc['element']!r} does not fit "
                              f"the {name} cells; use {FITTING.get(name, 'another')}")
-        basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"])
+        basis = Basis(mesh, ElementVector(element), intorder=disc["quadrature"],
+                      elements=cells)
     locking = resolve_locking(disc["locking"], method,
                               disc["element"] or LINEAR_OF.get(type(mesh).__name__, "quad1"), scene)
     locking = None if locking == "none" else locking
@@ -149,6 +159,8 @@ def build(scene, method=None, trust_geo=False):
         locking = None  # F-bar averages over a cell: one point per particle, nothing to do
     problem = SolidProblem(basis, material_from(scene["material"]), model, locking=locking,
                            stabilization_moduli=disc.get("stabilization_moduli") or "elastic")
+    if part is not None:
+        problem = PartitionedSolid(problem, reduction, world()[0])
 
     prescribed, loads, followers = [], [], []
     for name, section in scene.items():
@@ -183,7 +195,22 @@ def build(scene, method=None, trust_geo=False):
     tools = [tool_from_scene(name.split(".", 1)[1], section, basis, problem, scene)
              for name, section in tool_sections.items()]
     points = {k: np.asarray(v, float) for k, v in scene["output"]["points"].items()}
-    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points, followers)
+    return Simulation(scene, mesh, basis, problem, prescribed, load, tools, points, followers,
+                      part)
+
+
+def _partition(scene, method, mesh):
+    """The cells of each MPI rank, when the run is partitioned: under
+    ``mpiexec`` with the solver ``"petsc"`` and a cell integration scheme
+    (nodal schemes and ``"vci_symmetric"`` run whole on every rank, with
+    the solve distributed); None otherwise."""
+    ranks = world()[1]
+    integration = scene["discretization"]["integration"]
+    if ranks == 1 or scene["steps"]["solver"] != "petsc":
+        return None
+    if method == "rkpm" and integration not in ("vci", "gauss"):
+        return None
+    return partition(mesh, ranks)
 
 
 def _named(boundaries, scene):

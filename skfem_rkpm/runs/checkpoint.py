@@ -81,11 +81,13 @@ def _differences(old, new):
     return found
 
 
-def save_checkpoint(folder, sim, d, stepper, identity, **meta):
+def save_checkpoint(folder, sim, d, stepper, identity, state=None, **meta):
     """Write ``folder/checkpoint.npz`` atomically; ``meta`` (JSON values) is
-    stored with the step state and the identity."""
-    arrays = {"d": np.asarray(d, float), "Cp_inv": sim.problem.state.Cp_inv,
-              "alpha": sim.problem.state.alpha}
+    stored with the step state and the identity.  ``state``: the material
+    state of the whole domain (default the problem's; a partitioned problem
+    passes its ``gathered_state()``)."""
+    state = sim.problem.state if state is None else state
+    arrays = {"d": np.asarray(d, float), "Cp_inv": state.Cp_inv, "alpha": state.alpha}
     if stepper.rate is not None:
         arrays["rate"] = np.asarray(stepper.rate, float)
     if sim.problem.stabilization is not None:  # an incremental SCNI stabilization
@@ -153,7 +155,8 @@ def load_checkpoint(folder, sim, identity):
         raise CheckpointError(f"--resume: {path} belongs to another run: {what}. Resume "
                               f"with the same scene, --set and --method, or start afresh "
                               f"in another --out")
-    N, nqp = sim.problem.N, sim.problem.state.alpha.shape[0]
+    N = sim.problem.N
+    nqp = getattr(sim.problem, "whole_points", None) or sim.problem.state.alpha.shape[0]
     expected = {"d": (N,), "Cp_inv": (nqp, 3, 3), "alpha": (nqp,)}
     if "rate" in arrays:
         expected["rate"] = (N,)
@@ -161,8 +164,11 @@ def load_checkpoint(folder, sim, identity):
         if name not in arrays or arrays[name].shape != shape:
             raise CheckpointError(f"{path}: array {name!r} is missing or has the wrong "
                                   f"shape; start the run afresh (without --resume)")
-    sim.problem.state = MaterialState(arrays["Cp_inv"].astype(float),
-                                      arrays["alpha"].astype(float))
+    state = MaterialState(arrays["Cp_inv"].astype(float), arrays["alpha"].astype(float))
+    if hasattr(sim.problem, "restore_state"):  # partitioned: this rank's points
+        sim.problem.restore_state(state)
+    else:
+        sim.problem.state = state
     stabilization = sim.problem.stabilization
     if stabilization is not None and stabilization.get_state():
         try:

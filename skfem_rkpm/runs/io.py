@@ -101,6 +101,19 @@ def _corner_edges(mesh):
     return edges
 
 
+def material_fields(problem, evaluation):
+    """``dx`` (nelems, nqp), the Cauchy stress (n, 3, 3) and the equivalent
+    plastic strain (n,) at the material points of the whole domain: a
+    partitioned problem (``gather_points``) gathers them from every rank,
+    and must be called on every rank."""
+    dx, sigma = problem.assembler.layout.dx, problem.cauchy_stress(evaluation)
+    alpha = problem.state.alpha
+    gather = getattr(problem, "gather_points", None)
+    if gather is not None:
+        dx, sigma, alpha = problem.whole_dx, gather(sigma), gather(alpha)
+    return dx, sigma, alpha
+
+
 def cell_averages(values, dx):
     """Volume averages per cell of point values (n, ...) on a (nelems, nqp) rule."""
     nelems, nqp = dx.shape
@@ -111,11 +124,18 @@ def cell_averages(values, dx):
 
 def nodal_plastic_strain(problem):
     """Equivalent plastic strain averaged from the cells to the mesh vertices
-    (with nodal integration: the values at the particles)."""
+    (with nodal integration: the values at the particles; a partitioned
+    problem: its last gathered state)."""
     mesh = problem.basis.mesh
     if getattr(problem.basis, "nodal_quadrature", None) is not None:
         return problem.state.alpha
-    cells = cell_averages(problem.state.alpha, problem.assembler.layout.dx)
+    alpha, dx = problem.state.alpha, problem.assembler.layout.dx
+    if getattr(problem, "whole_dx", None) is not None:  # partitioned
+        if problem.whole_state is None:
+            raise ValueError("the plastic strain of a partitioned problem is known on one "
+                             "rank only after gathered_state() (a run with an output folder)")
+        alpha, dx = problem.whole_state.alpha, problem.whole_dx
+    cells = cell_averages(alpha, dx)
     total = np.bincount(mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]),
                         minlength=mesh.nvertices)
     count = np.bincount(mesh.t.ravel(), minlength=mesh.nvertices)
@@ -319,21 +339,23 @@ class FieldWriter:
         parts.append(_XDMF_TAIL)
         write_atomic(self.path, "".join(parts))
 
-    def write(self, t, d, evaluation=None, step=None):
+    def write(self, t, d, evaluation=None, step=None, fields=None):
         """Write the fields at load factor ``t`` for coefficients ``d``
-        (``step``: the step number, by default one more than the last)."""
+        (``step``: the step number, by default one more than the last;
+        ``fields``: :func:`material_fields` of ``evaluation``, if already
+        gathered)."""
         step = (self.entries[-1][0] + 1 if self.entries else 1) if step is None else step
         problem = self.problem
         u = np.zeros((problem.basis.mesh.nvertices, 3))
         disp = nodal_displacements(problem.basis, d)
         u[:, : disp.shape[1]] = disp
-        evaluation = evaluation or problem.evaluate(d, tangent=False)
-        dx = problem.assembler.layout.dx
-        sigma = problem.cauchy_stress(evaluation)
+        if fields is None:
+            fields = material_fields(problem, evaluation or problem.evaluate(d, tangent=False))
+        dx, sigma, alpha = fields
         s = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
         von_mises = np.sqrt(1.5 * np.einsum("nij,nij->n", s, s))
         fields = {"stress": sigma.reshape(-1, 9), "von_mises": von_mises,
-                  "plastic_strain": problem.state.alpha}
+                  "plastic_strain": alpha}
         if not self._nodal:
             fields = {key: cell_averages(value, dx) for key, value in fields.items()}
         data = {"displacement": u, **fields}

@@ -9,7 +9,10 @@ appends to ``history.csv`` and ``history.jsonl``, writes the step's fields
 and replaces ``checkpoint.npz``: a run stopped at any moment (Ctrl-C,
 SIGTERM, SIGKILL) keeps every step it finished, and ``resume=True``
 continues from the last checkpoint exactly as if it had not stopped.
-Under ``mpiexec`` every rank runs the same simulation and only rank 0 writes.
+Under ``mpiexec`` every rank runs the same simulation and only rank 0 writes;
+with a partitioned problem (:mod:`skfem_rkpm.solvers.partitioned`) every
+rank integrates its own cells, and the material state and fields of an
+output step are gathered from all ranks before rank 0 writes them.
 """
 
 import contextlib
@@ -25,12 +28,13 @@ import numpy as np
 
 from ..solvers.linear import make_solver
 from ..solvers.newton import StepperState, newton_steps
+from ..solvers.partitioned import DistributedLU
 from ..solvers.petsc import is_root
 from .build import Simulation, build
 from .checkpoint import load_checkpoint, run_identity, save_checkpoint
 from .folder import RunFolder, open_append, write_atomic
-from .io import (FieldWriter, HistoryFile, corner_jacobians, nodal_displacements,
-                 record_from_json, record_to_json)
+from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
+                 nodal_displacements, record_from_json, record_to_json)
 
 __all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text",
            "final_state_message"]
@@ -156,7 +160,8 @@ def run(sim, out=None, progress=True, resume=False, log=None):
             writer = stack.enter_context(_StepWriter(
                 sim, out, identity, start.stepper.step if resume else None))
         interrupts = stack.enter_context(_Interrupts())
-        return _run_steps(sim, start, writer, folder, interrupts, progress, log, solver)
+        return _run_steps(sim, start, writer, folder, interrupts, progress, log, solver,
+                          gather=out is not None and sim.partition is not None)
 
 
 @dataclass
@@ -191,18 +196,35 @@ class _StepWriter:
     def __exit__(self, *exc):
         self.records.close()
 
-    def write(self, record, gauges, d, evaluation, stepper, steps):
+    def write(self, record, gauges, d, evaluation, stepper, steps, gathered=None):
+        """``gathered``: the whole domain's material state and fields of a
+        partitioned problem (:func:`_gathered`)."""
         self.csv.append(record, gauges)
         self.records.write(record_to_json(record, gauges))
         self.records.flush()
-        if self.fields is not None and record.step % self.sim.scene["output"]["every"] == 0:
-            self.fields.write(record.t, d, evaluation, step=record.step)
-        save_checkpoint(self.out, self.sim, d, stepper, self.identity, steps=steps,
+        if self.fields is not None and _field_step(self.sim, record):
+            self.fields.write(record.t, d, evaluation, step=record.step,
+                              fields=gathered and gathered[1])
+        save_checkpoint(self.out, self.sim, d, stepper, self.identity,
+                        state=gathered and gathered[0], steps=steps,
                         history_bytes=(self.out / "history.csv").stat().st_size,
                         records_bytes=self.records.tell())
 
 
-def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver):
+def _field_step(sim, record):
+    """The fields are written at this step."""
+    output = sim.scene["output"]
+    return bool(output["fields"]) and record.step % output["every"] == 0
+
+
+def _gathered(sim, record, evaluation):
+    """The whole domain's material state and (at a field step) material
+    fields of a partitioned problem, gathered on every rank (collective)."""
+    fields = material_fields(sim.problem, evaluation) if _field_step(sim, record) else None
+    return sim.problem.gathered_state(), fields
+
+
+def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, gather=False):
     steps = sim.scene["steps"]
     probes = _point_probes(sim.basis, sim.points)
     history, rows = start.history, start.rows
@@ -214,9 +236,11 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver):
             gauges.update(tool.gauges(record.t))
         history.append(record)
         rows.append(gauges)
+        gathered = _gathered(sim, record, evaluation) if gather else None
         if writer is not None:
             with interrupts.deferred():  # a step is written whole or not at all
-                writer.write(record, gauges, d, evaluation, start.stepper, len(history))
+                writer.write(record, gauges, d, evaluation, start.stepper, len(history),
+                             gathered)
         bar(record)
 
     try:
@@ -344,8 +368,11 @@ class _Interrupts:
 
 def _linear_solver(sim):
     """The scene's solver; the distributed ones get the dof locations to
-    partition the particles among the MPI ranks."""
+    partition the particles among the MPI ranks, a partitioned problem the
+    solver of its ranks' shares."""
     name = sim.scene["steps"]["solver"]
+    if sim.partition is not None:
+        return DistributedLU(sim.partition, sim.problem.reduction)
     if name in DISTRIBUTED:
         return make_solver(name, points=sim.basis.doflocs)
     return make_solver(name)

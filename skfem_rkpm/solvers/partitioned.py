@@ -36,7 +36,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from ..mechanics.materials import ReturnMapError
+from ..mechanics.materials import MaterialState, ReturnMapError
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 from .backend import Solver, _import_backend, _refine
 from .petsc import bisection
@@ -205,9 +205,22 @@ class PartitionedSolid:
     :class:`PartialMatrix`; the committed state is this rank's.
     """
 
+    #: a partitioned solid has no SCNI stabilization (a cell scheme)
+    stabilization = None
+
     def __init__(self, problem, reduction, rank):
         self.problem, self.reduction, self.rank = problem, reduction, int(rank)
         self.basis, self.material, self.model = problem.basis, problem.material, problem.model
+        self.assembler = problem.assembler
+        nelems, nqp = problem.shape
+        cells = np.asarray(self.basis.tind, dtype=np.int64)
+        #: the material points of the whole domain (all cells x nqp)
+        self.whole_points = self.basis.mesh.nelements * nqp
+        self._points = (cells[:, None] * nqp + np.arange(nqp)).ravel()
+        #: the quadrature weights of the whole domain (nelements, nqp)
+        self.whole_dx = self.gather_points(problem.assembler.layout.dx.ravel()).reshape(-1, nqp)
+        #: the whole domain's state at the last :meth:`gathered_state`
+        self.whole_state = None
 
     @property
     def N(self):
@@ -253,6 +266,28 @@ class PartitionedSolid:
 
     def commit(self, evaluation):
         self.problem.commit(evaluation)
+
+    def gather_points(self, values):
+        """Values at this rank's material points (n, ...) placed among those
+        of all ranks: the whole domain's (cell-major, as an unpartitioned
+        problem numbers its points), on every rank (collective)."""
+        values = np.asarray(values, dtype=float)
+        whole = np.zeros((self.whole_points,) + values.shape[1:])
+        whole[self._points] = values
+        return self.reduction.sum(whole)
+
+    def gathered_state(self):
+        """The committed material state of the whole domain (collective),
+        kept as ``whole_state``."""
+        state = self.problem.state
+        self.whole_state = MaterialState(self.gather_points(state.Cp_inv),
+                                         self.gather_points(state.alpha))
+        return self.whole_state
+
+    def restore_state(self, whole):
+        """Take this rank's points of a whole-domain material state."""
+        self.problem.state = MaterialState(whole.Cp_inv[self._points].copy(),
+                                           whole.alpha[self._points].copy())
 
     def cauchy_stress(self, evaluation):
         return self.problem.cauchy_stress(evaluation)

@@ -18,6 +18,8 @@ import sys
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from ..solvers.petsc import is_root, world
 from ..solvers.linear import BACKENDS
 from .scene import SceneError, builtin_scenes, load_scene
@@ -66,6 +68,14 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
     if root:
         print(f"{scene['model']['title'] or path.stem}: {sim.method}, {sim.basis.N} dofs, "
               f"{scene['steps']['count']} steps -> {out}")
+        if sim.partition is not None:
+            counts = np.bincount(sim.partition.cells, minlength=ranks)
+            print(f"partitioned over {ranks} MPI ranks: each integrates its own cells "
+                  f"({counts.min()}-{counts.max()} of {len(sim.partition.cells)})")
+        elif ranks > 1 and scene["steps"]["solver"] == "petsc":
+            print(f"note: {ranks} MPI ranks, but integration = "
+                  f"{scene['discretization']['integration']!r} is not partitioned: every "
+                  f"rank assembles the whole model and only the solve is distributed")
         if ranks > 1 and not scene["steps"]["solver"].startswith("petsc"):
             print(f"note: {ranks} MPI ranks, but the solver {scene['steps']['solver']!r} is "
                   f"not distributed: every rank repeats the whole run (use --solver petsc)")

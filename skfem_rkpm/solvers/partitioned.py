@@ -61,8 +61,12 @@ class MPIReduction:
 
     def __init__(self, comm=None):
         if comm is None:
-            from mpi4py import MPI
-
+            try:
+                from mpi4py import MPI
+            except ImportError as err:
+                raise ImportError(f"a run partitioned over MPI ranks sums over them with "
+                                  f"mpi4py, which is not installed ({err}): `pip install "
+                                  f"mpi4py` (part of skfem-rkpm[petsc])") from err
             comm = MPI.COMM_WORLD
         self.comm = comm
         self.rank, self.parts = comm.Get_rank(), comm.Get_size()

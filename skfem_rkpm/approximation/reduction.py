@@ -15,10 +15,16 @@ result on every part:
     The elementwise sum of a dense array over the parts.
 ``sum_sparse(matrix)``
     The sum of a scipy sparse matrix over the parts, in CSR.
+``gather(values, rows, total)``
+    Each part's ``values`` placed at its ``rows`` of one array of
+    ``total`` rows, on part 0 (the others get None): the parts' rows are
+    disjoint, and nothing of the whole array is held by the other parts.
 
 :data:`WHOLE` is the reduction of an unpartitioned domain: one part,
 nothing to add.
 """
+
+import numpy as np
 
 __all__ = ["WholeDomain", "WHOLE"]
 
@@ -33,6 +39,12 @@ class WholeDomain:
 
     def sum_sparse(self, matrix):
         return matrix.tocsr()
+
+    def gather(self, values, rows, total):
+        values = np.asarray(values)
+        whole = np.zeros((total,) + values.shape[1:], dtype=values.dtype)
+        whole[rows] = values
+        return whole
 
 
 WHOLE = WholeDomain()

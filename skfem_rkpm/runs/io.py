@@ -104,13 +104,15 @@ def _corner_edges(mesh):
 def material_fields(problem, evaluation):
     """``dx`` (nelems, nqp), the Cauchy stress (n, 3, 3) and the equivalent
     plastic strain (n,) at the material points of the whole domain: a
-    partitioned problem (``gather_points``) gathers them from every rank,
-    and must be called on every rank."""
+    partitioned problem (``gather_points``) gathers them from every rank on
+    rank 0 (the others get None), and must be called on every rank."""
     dx, sigma = problem.assembler.layout.dx, problem.cauchy_stress(evaluation)
     alpha = problem.state.alpha
     gather = getattr(problem, "gather_points", None)
     if gather is not None:
         dx, sigma, alpha = problem.whole_dx, gather(sigma), gather(alpha)
+        if dx is None:  # not rank 0
+            return None
     return dx, sigma, alpha
 
 
@@ -125,15 +127,16 @@ def cell_averages(values, dx):
 def nodal_plastic_strain(problem):
     """Equivalent plastic strain averaged from the cells to the mesh vertices
     (with nodal integration: the values at the particles; a partitioned
-    problem: its last gathered state)."""
+    problem: its last gathered state, on rank 0)."""
     mesh = problem.basis.mesh
     if getattr(problem.basis, "nodal_quadrature", None) is not None:
         return problem.state.alpha
     alpha, dx = problem.state.alpha, problem.assembler.layout.dx
-    if getattr(problem, "whole_dx", None) is not None:  # partitioned
+    if hasattr(problem, "gather_points"):  # partitioned
         if problem.whole_state is None:
-            raise ValueError("the plastic strain of a partitioned problem is known on one "
-                             "rank only after gathered_state() (a run with an output folder)")
+            raise ValueError("the plastic strain of a partitioned problem is known on "
+                             "rank 0 only, after gathered_state() (a run with an output "
+                             "folder)")
         alpha, dx = problem.whole_state.alpha, problem.whole_dx
     cells = cell_averages(alpha, dx)
     total = np.bincount(mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]),

@@ -219,7 +219,8 @@ def _field_step(sim, record):
 
 def _gathered(sim, record, evaluation):
     """The whole domain's material state and (at a field step) material
-    fields of a partitioned problem, gathered on every rank (collective)."""
+    fields of a partitioned problem, gathered on rank 0 (collective; the
+    other ranks get Nones)."""
     fields = material_fields(sim.problem, evaluation) if _field_step(sim, record) else None
     return sim.problem.gathered_state(), fields
 

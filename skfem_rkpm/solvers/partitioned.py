@@ -29,6 +29,8 @@ every rank:
 Vectors of the dofs (coefficients, forces) are replicated: ``16 N`` bytes
 per rank for ``N`` dofs, small beside the shape tables.  The VCI balancing
 matrix (particles × particles) is summed and solved on every rank alike.
+What rank 0 writes (the material state of a checkpoint, the fields of an
+output step) is gathered on rank 0 only.
 """
 
 import time
@@ -91,6 +93,24 @@ class MPIReduction:
         out = np.empty(int(counts.sum()), dtype=local.dtype)
         self.comm.Allgatherv(local, (out, counts))
         return out
+
+    def gather(self, values, rows, total):
+        """The ranks' ``values`` at their ``rows`` of a (total, ...) array,
+        on rank 0 only (``MPI_Gatherv``; None on the others)."""
+        values = np.ascontiguousarray(values, dtype=float)
+        width = int(np.prod(values.shape[1:], dtype=np.int64))
+        counts = np.array(self.comm.gather(len(rows), root=0) or [], dtype=np.int64)
+        root = self.rank == 0
+        all_rows = np.empty(int(counts.sum()), dtype=np.int64) if root else None
+        flat = np.empty(int(counts.sum()) * width) if root else None
+        self.comm.Gatherv(np.ascontiguousarray(rows, dtype=np.int64),
+                          (all_rows, counts) if root else None, root=0)
+        self.comm.Gatherv(values.ravel(), (flat, counts * width) if root else None, root=0)
+        if not root:
+            return None
+        whole = np.zeros((total,) + values.shape[1:])
+        whole[all_rows] = flat.reshape((-1,) + values.shape[1:])
+        return whole
 
 
 class Partition:
@@ -221,9 +241,10 @@ class PartitionedSolid:
         #: the material points of the whole domain (all cells x nqp)
         self.whole_points = self.basis.mesh.nelements * nqp
         self._points = (cells[:, None] * nqp + np.arange(nqp)).ravel()
-        #: the quadrature weights of the whole domain (nelements, nqp)
-        self.whole_dx = self.gather_points(problem.assembler.layout.dx.ravel()).reshape(-1, nqp)
-        #: the whole domain's state at the last :meth:`gathered_state`
+        dx = self.gather_points(problem.assembler.layout.dx.ravel())
+        #: the quadrature weights of the whole domain (nelements, nqp), on rank 0
+        self.whole_dx = None if dx is None else dx.reshape(-1, nqp)
+        #: the whole domain's state at the last :meth:`gathered_state`, on rank 0
         self.whole_state = None
 
     @property
@@ -274,18 +295,17 @@ class PartitionedSolid:
     def gather_points(self, values):
         """Values at this rank's material points (n, ...) placed among those
         of all ranks: the whole domain's (cell-major, as an unpartitioned
-        problem numbers its points), on every rank (collective)."""
-        values = np.asarray(values, dtype=float)
-        whole = np.zeros((self.whole_points,) + values.shape[1:])
-        whole[self._points] = values
-        return self.reduction.sum(whole)
+        problem numbers its points), on rank 0, None on the others
+        (collective)."""
+        return self.reduction.gather(values, self._points, self.whole_points)
 
     def gathered_state(self):
-        """The committed material state of the whole domain (collective),
-        kept as ``whole_state``."""
+        """The committed material state of the whole domain on rank 0 (None
+        on the others; collective), kept there as ``whole_state``."""
         state = self.problem.state
-        self.whole_state = MaterialState(self.gather_points(state.Cp_inv),
-                                         self.gather_points(state.alpha))
+        Cp_inv, alpha = self.gather_points(state.Cp_inv), self.gather_points(state.alpha)
+        if Cp_inv is not None:
+            self.whole_state = MaterialState(Cp_inv, alpha)
         return self.whole_state
 
     def restore_state(self, whole):

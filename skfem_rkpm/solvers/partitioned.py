@@ -40,8 +40,7 @@ import scipy.sparse as sp
 
 from ..mechanics.materials import MaterialState, ReturnMapError
 from ..mechanics.problem import InvertedElementError, NonFiniteError
-from .backend import Solver, _import_backend, _refine
-from .petsc import bisection
+from .petsc import PETScLU, bisection
 
 __all__ = ["MPIReduction", "partition", "Partition", "PartialMatrix", "PartitionedSolid",
            "DistributedLU"]
@@ -317,7 +316,7 @@ class PartitionedSolid:
         return self.problem.cauchy_stress(evaluation)
 
 
-class DistributedLU(Solver):
+class DistributedLU(PETScLU):
     """MUMPS LU through PETSc of a matrix given as the ranks' shares
     (:class:`PartialMatrix`).
 
@@ -325,37 +324,28 @@ class DistributedLU(Solver):
     multiplier rows go with the particle of their largest constraint
     entry).  The shares are summed by PETSc's COO assembly into an MPIAIJ
     matrix; the pattern (and MUMPS's analysis) is kept until a share's
-    pattern changes on some rank.  The solution is gathered to every rank
-    and refined against the summed matrix.
+    pattern changes on some rank.  The solve, the gathered solution and
+    its refinement against the summed matrix are :class:`PETScLU`'s.
     """
 
-    name = "petsc"
     #: factors the sum of the ranks' :class:`PartialMatrix` shares
     sums_shares = True
 
     def __init__(self, partition, reduction, factor_solver="mumps"):
         super().__init__(symmetric=False, factor_solver=factor_solver)
-        _import_backend(self.name)
-        from petsc4py import PETSc
-
-        self.PETSc, self.comm = PETSc, PETSc.COMM_WORLD
         self.partition, self.reduction = partition, reduction
-        self.rank = self.comm.getRank()
-        self._mat = self._ksp = None
         self._key = None
         self.system = None
 
     def factor(self, A, constraint_rows=None):
         clock = time.perf_counter()
         n = A.shape[0]
-        ncomp = max(A.shape[0] - (0 if constraint_rows is None else constraint_rows.shape[0]),
-                    0) // len(self.partition.particles)
-        owner = self._owners(n, ncomp, constraint_rows)
+        m = 0 if constraint_rows is None else constraint_rows.shape[0]
+        owner = self._owners(n, (n - m) // len(self.partition.particles), constraint_rows)
         coo = A.local.tocoo()
         key = (n, coo.nnz, hash(coo.row.tobytes()), hash(coo.col.tobytes()),
                hash(owner.tobytes()))
-        changed = self.reduction.sum(np.array([float(key != self._key)]))[0] > 0
-        if changed:
+        if self.reduction.sum(np.array([float(key != self._key)]))[0] > 0:
             self._analyze_shares(owner, coo)
             self._key = key
             self.stats["analyses"] += 1
@@ -382,13 +372,14 @@ class DistributedLU(Solver):
         return owner
 
     def _analyze_shares(self, owner, coo):
+        """The MPIAIJ matrix of the rows ``owner`` gives each rank (renumbered
+        to be contiguous), preallocated for the entries of ``coo``."""
         PETSc = self.PETSc
         n = len(owner)
         order = np.argsort(owner, kind="stable")  # new row k is old row order[k]
         new = np.empty(n, dtype=np.int64)
         new[order] = np.arange(n)
-        counts = np.bincount(owner, minlength=self.comm.getSize())
-        bounds = np.concatenate([[0], np.cumsum(counts)])
+        bounds = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.size))])
         r0, r1 = int(bounds[self.rank]), int(bounds[self.rank + 1])
         self._order, self._rows = order, (r0, r1)
         self._destroy()
@@ -401,45 +392,12 @@ class DistributedLU(Solver):
         self._gather, self._xall = PETSc.Scatter.toAll(self._x)
         self._ksp = PETSc.KSP().create(comm=self.comm)
         self._ksp.setOperators(self._mat)
-        self._ksp.setType("preonly")
-        pc = self._ksp.getPC()
-        pc.setType("lu")
-        pc.setFactorSolverType(self.options["factor_solver"])
-        self._ksp.setErrorIfNotConverged(True)
-        self._ksp.setFromOptions()
-
-    def _solve_one(self, b):
-        r0, r1 = self._rows
-        self._b.setArray(b[self._order[r0:r1]])
-        try:
-            self._ksp.solve(self._b, self._x)
-        except self.PETSc.Error as err:
-            raise np.linalg.LinAlgError(f"{self.describe()}: PETSc error {err.ierr} in "
-                                        "the solve") from err
-        self._gather.scatter(self._x, self._xall, addv=self.PETSc.InsertMode.INSERT,
-                             mode=self.PETSc.ScatterMode.FORWARD)
-        x = np.empty(len(b))
-        x[self._order] = self._xall.getArray(readonly=True)
-        return x
-
-    def _solve(self, b):
-        if b.ndim == 2:
-            return np.column_stack([self._solve(col) for col in b.T])
-        return _refine(self.A, b, self._solve_one(b), self._solve_one)
+        self._configure(self._ksp)
 
     def describe(self):
-        size = self.comm.getSize()
         return (f"PETSc {self.options['factor_solver'].upper()} LU of the ranks' summed "
-                f"shares ({size} MPI rank{'s' if size > 1 else ''})")
-
-    def _destroy(self):
-        for name in ("_ksp", "_mat", "_b", "_x", "_xall", "_gather"):
-            obj = getattr(self, name, None)
-            if obj is not None:
-                obj.destroy()
-            setattr(self, name, None)
+                f"shares ({self._ranks()})")
 
     def reset(self):
         super().reset()
         self._key = None
-        self._destroy()

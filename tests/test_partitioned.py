@@ -18,6 +18,7 @@ from scipy.sparse.linalg import splu
 from skfem import Basis, ElementQuad1, ElementVector, MeshQuad
 
 from skfem_rkpm import RKBasis
+from skfem_rkpm.approximation.basis_views import BasisIdiomError
 from skfem_rkpm.mechanics.materials import J2Material, linear
 from skfem_rkpm.mechanics.problem import InvertedElementError, SolidProblem
 from skfem_rkpm.meshes import rectangle
@@ -139,6 +140,8 @@ def test_the_parts_of_a_vci_basis_are_the_whole_basis_on_their_cells(axisymmetri
         np.testing.assert_allclose(part.trial.grads, restricted.trial.grads,
                                    atol=1e-13 * scale, rtol=0)
     assert sum(b.nelems for b in bases) == mesh.nelements
+    with pytest.raises(BasisIdiomError, match="one part of a partitioned basis"):
+        bases[0].with_elements([0])
 
 
 def test_partition_splits_the_cells_evenly_and_gives_rows_to_a_cell_of_theirs():

@@ -314,6 +314,7 @@ class RKBasis(CellViews, RKBase):
             self._restrict(elements)
         else:
             self.tind = part
+            self._part_of_partition = True
 
     @property
     def segment_points(self):

@@ -193,6 +193,10 @@ class CellViews(_DofIdioms):
             ``tind`` holds the cell indices.
         """
         self._require_cells("with_elements")
+        if getattr(self, "_part_of_partition", False):
+            raise BasisIdiomError("with_elements: this basis is one part of a partitioned "
+                                  "basis (RKBasis(..., reduction=...)), built on its own "
+                                  "cells only; build the part on the cells wanted instead")
         whole = getattr(self, "_whole", None) or self
         if elements is None:
             return whole

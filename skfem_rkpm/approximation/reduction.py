@@ -7,9 +7,9 @@ support (the VCI moments and constraint right-hand sides of
 :mod:`.integration`) are then partial sums, and a *reduction* adds them up
 over all parts, so that every part continues with the whole-domain sums.
 
-A reduction has two methods, both collective (every part calls them in the
-same order with arrays of the same shape) and both returning the same
-result on every part:
+A reduction has three methods, all collective (every part calls them in
+the same order); the two sums take arrays of the same shape on every part
+and return the same result on every part:
 
 ``sum(array)``
     The elementwise sum of a dense array over the parts.

@@ -210,7 +210,7 @@ def test_mpi_ranks_give_the_serial_history_and_fields(tmp_path, ranks):
     """The ring partitioned over 2 and 4 ranks (4 oversubscribe 2 cores):
     each rank integrates its own cells (solvers.partitioned), and the
     history, the fields written and the checkpoint are those of the serial
-    run to the solver's round-off."""
+    run to the solver's round-off; the run folders hold the same files."""
     import h5py
 
     env = mpi_environment()
@@ -221,7 +221,10 @@ def test_mpi_ranks_give_the_serial_history_and_fields(tmp_path, ranks):
     if probe.returncode != 0 or "".join(probe.stdout.split()) != str(ranks) * ranks:
         pytest.skip(f"{mpiexec()} does not start PETSc on {ranks} ranks (another MPI than "
                     f"PETSc's? set SKFEM_RKPM_MPIEXEC): {probe.stdout!r} {probe.stderr[-500:]!r}")
-    settings = [arg for s in RING + ["output.fields=true", "output.every=10"]
+    # figures too: rank 0 alone makes them after the run, which must not
+    # leave the other ranks waiting on a collective PETSc clean-up
+    settings = [arg for s in RING + ["output.fields=true", "output.every=10",
+                                     "output.figures=true"]
                 for arg in ("--set", s)]
     command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", "ring", *settings, "--quiet"]
     # serial: the default path (dense LU at this size)
@@ -233,6 +236,8 @@ def test_mpi_ranks_give_the_serial_history_and_fields(tmp_path, ranks):
                               capture_output=True, text=True, env=env, timeout=900)
     assert parallel.returncode == 0, parallel.stdout + parallel.stderr
     assert parallel.stdout.count("completed") == 1  # only rank 0 prints
+    assert ({p.name for p in (tmp_path / "mpi").iterdir()}
+            == {p.name for p in (tmp_path / "serial").iterdir()})
     for name in ("step-000010.h5", "step-000020.h5"):
         with h5py.File(tmp_path / "mpi" / "fields" / name) as got, \
                 h5py.File(tmp_path / "serial" / "fields" / name) as want:

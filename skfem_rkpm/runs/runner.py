@@ -160,8 +160,15 @@ def run(sim, out=None, progress=True, resume=False, log=None):
             writer = stack.enter_context(_StepWriter(
                 sim, out, identity, start.stepper.step if resume else None))
         interrupts = stack.enter_context(_Interrupts())
-        return _run_steps(sim, start, writer, folder, interrupts, progress, log, solver,
-                          gather=out is not None and sim.partition is not None)
+        try:
+            return _run_steps(sim, start, writer, folder, interrupts, progress, log, solver,
+                              gather=out is not None and sim.partition is not None)
+        finally:
+            # PETSc objects are destroyed collectively: every rank frees the
+            # solver's here, in step, not when its garbage collector runs
+            # (rank 0 alone then makes figures, and the ranks would wait
+            # for each other)
+            solver.reset()
 
 
 @dataclass

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
-from skfem import Basis, ElementQuad1, ElementVector, MeshQuad
+from skfem import Basis, ElementHex1, ElementQuad1, ElementVector, MeshHex, MeshQuad
 
 from skfem_rkpm import RKBasis
 from skfem_rkpm.approximation.basis_views import BasisIdiomError
@@ -142,6 +142,22 @@ def test_the_parts_of_a_vci_basis_are_the_whole_basis_on_their_cells(axisymmetri
     assert sum(b.nelems for b in bases) == mesh.nelements
     with pytest.raises(BasisIdiomError, match="one part of a partitioned basis"):
         bases[0].with_elements([0])
+
+
+def test_the_parts_of_a_3d_vci_basis_are_the_whole_basis_on_their_cells():
+    """The same on hexahedra (2 parts of a 4 x 3 x 3 block)."""
+    mesh = MeshHex.init_tensor(np.linspace(0, 1, 5), np.linspace(0, 1, 4),
+                               np.linspace(0, 1, 4))
+    element = ElementVector(ElementHex1())
+    whole = RKBasis(mesh, element, support=2.0, intorder=3)
+    parts = partition(mesh, 2)
+    bases, errors = on_threads(2, lambda r, red: RKBasis(
+        mesh, element, support=2.0, intorder=3, elements=parts.cells_of(r), reduction=red))
+    assert errors == [None] * 2
+    scale = np.abs(whole.grads).max()
+    for rank, part in enumerate(bases):
+        restricted = whole.with_elements(parts.cells_of(rank))
+        np.testing.assert_allclose(part.grads, restricted.grads, atol=1e-13 * scale, rtol=0)
 
 
 def test_partition_splits_the_cells_evenly_and_gives_rows_to_a_cell_of_theirs():

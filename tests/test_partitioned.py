@@ -262,6 +262,12 @@ def test_a_failure_on_one_part_stops_every_part():
     _, errors = on_threads(2, run)
     assert all(isinstance(e, InvertedElementError) for e in errors), errors
     assert all("on rank " in str(e) for e in errors)
+    # the cell named is the mesh's: the point named lies in it
+    message = str(errors[0])
+    cell = int(message.split("in cell ")[1].split()[0])
+    X = np.array([float(v) for v in message.split("X = (")[1].split(")")[0].split(",")])
+    corners = mesh.p[:, mesh.t[:, cell]]
+    assert np.all(corners.min(axis=1) <= X) and np.all(X <= corners.max(axis=1))
 
 
 def test_the_gathered_state_is_the_whole_state_and_restores_each_part():

@@ -189,12 +189,15 @@ class SolidProblem:
         return A
 
     def _where(self, point):
-        """``cell c (point q) at X = (...)`` for a flat quadrature point index."""
+        """``cell c (point q) at X = (...)`` for a flat quadrature point index
+        (``c`` numbers the mesh's cells, also on a basis of some of them)."""
         X = np.asarray(self.basis.global_coordinates())
         x = X.reshape(len(X), -1)[:, point]
         if getattr(self.basis, "nodal_quadrature", None) is not None:
             return f"at particle {point} (X = ({', '.join(f'{v:.4g}' for v in x)}))"
         cell, qp = np.divmod(point, self.shape[1])
+        tind = getattr(self.basis, "tind", None)  # a basis on some of the cells
+        cell = cell if tind is None else tind[cell]
         return f"in cell {cell} (point {qp}) at X = ({', '.join(f'{v:.4g}' for v in x)})"
 
     def _check_finite(self, values, what):

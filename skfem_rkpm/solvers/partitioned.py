@@ -235,7 +235,7 @@ class PartitionedSolid:
         self.problem, self.reduction, self.rank = problem, reduction, int(rank)
         self.basis, self.material, self.model = problem.basis, problem.material, problem.model
         self.assembler = problem.assembler
-        nelems, nqp = problem.shape
+        nqp = problem.shape[1]
         cells = np.asarray(self.basis.tind, dtype=np.int64)
         #: the material points of the whole domain (all cells x nqp)
         self.whole_points = self.basis.mesh.nelements * nqp
@@ -280,7 +280,8 @@ class PartitionedSolid:
         code = np.zeros(_MESSAGE_BYTES + 1)
         if self.rank == first:
             text = str(error).encode()[:_MESSAGE_BYTES]
-            code[0] = 1 + _POINT_ERRORS.index(type(error))
+            code[0] = 1 + next(k for k, kind in enumerate(_POINT_ERRORS)
+                               if isinstance(error, kind))
             code[1:1 + len(text)] = np.frombuffer(text, dtype=np.uint8)
         code = self.reduction.sum(code)
         kind = _POINT_ERRORS[int(code[0]) - 1]

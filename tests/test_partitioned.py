@@ -24,7 +24,8 @@ from skfem_rkpm.mechanics.problem import InvertedElementError, SolidProblem
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.solvers.backend import Solver
 from skfem_rkpm.solvers.newton import Prescribed, newton_steps
-from skfem_rkpm.solvers.partitioned import PartialMatrix, PartitionedSolid, partition
+from skfem_rkpm.solvers.partitioned import (PartialMatrix, PartitionedSolid, RankFailure,
+                                            partition)
 
 E, NU = 200e3, 0.3
 VECTOR = ElementVector(ElementQuad1())
@@ -302,3 +303,25 @@ def test_the_gathered_state_is_the_whole_state_and_restores_each_part():
     for _, own, restored, _ in results:
         np.testing.assert_allclose(restored.alpha, own.alpha, atol=1e-12)
         np.testing.assert_allclose(restored.Cp_inv, own.Cp_inv, atol=1e-12)
+
+
+def test_any_other_failure_on_one_part_stops_every_part():
+    """An error that is not a material point's (here a KeyError on part 1)
+    becomes a RankFailure on every part: Newton must not retry it on some."""
+    mesh = block(4)
+    parts = partition(mesh, 2)
+
+    def run(rank, reduction):
+        basis = RKBasis(mesh, VECTOR, support=2.0, elements=parts.cells_of(rank),
+                        reduction=reduction)
+        problem, _ = upsetting(basis)
+        if rank == 1:
+            def broken(*args, **kwargs):
+                raise KeyError("a missing entry")
+            problem.evaluate = broken
+        PartitionedSolid(problem, reduction, rank).evaluate(np.zeros(problem.N))
+
+    _, errors = on_threads(2, run)
+    assert all(isinstance(e, RankFailure) for e in errors), errors
+    assert all("rank 1 failed" in str(e) and "a missing entry" in str(e) for e in errors)
+    assert isinstance(errors[1].__cause__, KeyError)

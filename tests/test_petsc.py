@@ -245,6 +245,13 @@ def test_mpi_ranks_give_the_serial_history_and_fields(tmp_path, ranks):
                 scale = max(np.abs(want[key][()]).max(), 1.0)
                 np.testing.assert_allclose(got[key][()], want[key][()], rtol=0,
                                            atol=1e-8 * scale, err_msg=f"{name}: {key}")
+    # a resumed partitioned run (here: nothing left to do) restores every
+    # rank's points and makes the figures from the checkpoint's state
+    resumed = subprocess.run([*launcher(ranks), *command, "--solver", "petsc",
+                              "--out", str(tmp_path / "mpi"), "--resume"],
+                             capture_output=True, text=True, env=env, timeout=900)
+    assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+    assert resumed.stdout.count("completed") == 1
     mpi_state = np.load(tmp_path / "mpi" / "checkpoint.npz")
     serial_state = np.load(tmp_path / "serial" / "checkpoint.npz")
     for key in ("d", "alpha", "Cp_inv"):

@@ -201,14 +201,15 @@ def build(scene, method=None, trust_geo=False):
 
 def _partition(scene, method, mesh):
     """The cells of each MPI rank, when the run is partitioned: under
-    ``mpiexec`` with the solver ``"petsc"`` and a cell integration scheme
-    (nodal schemes and ``"vci_symmetric"`` run whole on every rank, with
-    the solve distributed); None otherwise."""
+    ``mpiexec`` with the solver ``"petsc"``, RKPM and a cell integration
+    scheme; None otherwise (nodal schemes, ``"vci_symmetric"`` and FEM
+    run whole on every rank, with the solve distributed: scikit-fem's
+    probes and the rows of higher-order elements need the whole mesh)."""
     ranks = world()[1]
     integration = scene["discretization"]["integration"]
     if ranks == 1 or scene["steps"]["solver"] != "petsc":
         return None
-    if method == "rkpm" and integration not in ("vci", "gauss"):
+    if method != "rkpm" or integration not in ("vci", "gauss"):
         return None
     return partition(mesh, ranks)
 

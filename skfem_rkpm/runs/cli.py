@@ -73,9 +73,10 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
             print(f"partitioned over {ranks} MPI ranks: each integrates its own cells "
                   f"({counts.min()}-{counts.max()} of {len(sim.partition.cells)})")
         elif ranks > 1 and scene["steps"]["solver"] == "petsc":
-            print(f"note: {ranks} MPI ranks, but integration = "
-                  f"{scene['discretization']['integration']!r} is not partitioned: every "
-                  f"rank assembles the whole model and only the solve is distributed")
+            what = (f"integration = {scene['discretization']['integration']!r}"
+                    if sim.method == "rkpm" else "FEM")
+            print(f"note: {ranks} MPI ranks, but {what} is not partitioned: every rank "
+                  f"assembles the whole model and only the solve is distributed")
         if ranks > 1 and not scene["steps"]["solver"].startswith("petsc"):
             print(f"note: {ranks} MPI ranks, but the solver {scene['steps']['solver']!r} is "
                   f"not distributed: every rank repeats the whole run (use --solver petsc)")

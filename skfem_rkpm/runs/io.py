@@ -353,6 +353,10 @@ class FieldWriter:
         disp = nodal_displacements(problem.basis, d)
         u[:, : disp.shape[1]] = disp
         if fields is None:
+            if hasattr(problem, "gather_points"):
+                raise ValueError("the fields of a partitioned problem are gathered from "
+                                 "every rank: call material_fields(problem, evaluation) "
+                                 "on every rank and pass its result as fields=")
             fields = material_fields(problem, evaluation or problem.evaluate(d, tangent=False))
         dx, sigma, alpha = fields
         s = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)

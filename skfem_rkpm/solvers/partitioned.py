@@ -42,13 +42,18 @@ from ..mechanics.materials import MaterialState, ReturnMapError
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 from .petsc import PETScLU, bisection
 
-__all__ = ["MPIReduction", "partition", "Partition", "PartialMatrix", "PartitionedSolid",
+__all__ = ["RankFailure", "MPIReduction", "partition", "Partition", "PartialMatrix", "PartitionedSolid",
            "DistributedLU"]
 
 #: errors of a material point that stop an evaluation: raised on every rank
 _POINT_ERRORS = (InvertedElementError, NonFiniteError, ReturnMapError)
 #: bytes of a failing rank's message passed to the others
 _MESSAGE_BYTES = 1024
+
+
+class RankFailure(Exception):
+    """An error that is not a material point's stopped one rank: every rank
+    stops (not a ``RuntimeError``, which Newton would retry)."""
 
 
 class MPIReduction:
@@ -73,9 +78,13 @@ class MPIReduction:
         self.rank, self.parts = comm.Get_rank(), comm.Get_size()
 
     def sum(self, array):
+        """The elementwise sum over the ranks, the same bits on every rank:
+        summed on rank 0 and broadcast (an allreduce may round differently
+        on different ranks, and every Newton decision compares sums)."""
         array = np.ascontiguousarray(array)
         out = np.empty_like(array)
-        self.comm.Allreduce(array, out)
+        self.comm.Reduce(array, out, root=0)
+        self.comm.Bcast(out, root=0)
         return out
 
     def sum_sparse(self, matrix):
@@ -121,8 +130,8 @@ class Partition:
         The rank of every background cell.
     particles : ndarray, shape (nparticles,)
         The rank owning the rows (dofs) of every particle: the lowest rank
-        among the cells it is a vertex of, so that rows sit where most of
-        their entries are assembled.
+        among the cells it is a vertex of, so that its rows sit on a rank
+        that assembles some of their entries.
     parts : int
     """
 
@@ -258,7 +267,7 @@ class PartitionedSolid:
         error = None
         try:
             evaluation = self.problem.evaluate(d, state, tangent)
-        except _POINT_ERRORS as err:
+        except Exception as err:  # noqa: BLE001 - raised on every rank below
             error = err
         self._raise_together(error)
         evaluation.f_int = self.reduction.sum(evaluation.f_int)
@@ -269,8 +278,10 @@ class PartitionedSolid:
         return evaluation
 
     def _raise_together(self, error):
-        """Raise the error of the lowest failing rank on every rank (the
-        same type and message, with the rank named)."""
+        """Raise the error of the lowest failing rank on every rank, with
+        the rank named: a material point's error as its own type (Newton
+        cuts the step back on every rank alike), any other as a
+        :class:`RankFailure`, which stops every rank."""
         failed = np.zeros(self.reduction.parts)
         failed[self.rank] = error is not None
         failed = np.flatnonzero(self.reduction.sum(failed))
@@ -280,14 +291,16 @@ class PartitionedSolid:
         code = np.zeros(_MESSAGE_BYTES + 1)
         if self.rank == first:
             text = str(error).encode()[:_MESSAGE_BYTES]
-            code[0] = 1 + next(k for k, kind in enumerate(_POINT_ERRORS)
-                               if isinstance(error, kind))
+            code[0] = 1 + next((k for k, kind in enumerate(_POINT_ERRORS)
+                                if isinstance(error, kind)), -1)
             code[1:1 + len(text)] = np.frombuffer(text, dtype=np.uint8)
         code = self.reduction.sum(code)
-        kind = _POINT_ERRORS[int(code[0]) - 1]
         text = bytes(code[1:].astype(np.uint8)).rstrip(b"\0").decode(errors="replace")
+        if code[0] == 0:
+            raise RankFailure(f"rank {first} failed in the evaluation of the solid: "
+                              f"{text}") from error
         points = error.points if self.rank == first else np.zeros(0, dtype=np.int64)
-        raise kind(f"on rank {first}: {text}", points)
+        raise _POINT_ERRORS[int(code[0]) - 1](f"on rank {first}: {text}", points)
 
     def commit(self, evaluation):
         self.problem.commit(evaluation)
@@ -309,7 +322,10 @@ class PartitionedSolid:
         return self.whole_state
 
     def restore_state(self, whole):
-        """Take this rank's points of a whole-domain material state."""
+        """Take this rank's points of a whole-domain material state (rank 0
+        keeps the whole one, as after :meth:`gathered_state`)."""
+        if self.rank == 0:
+            self.whole_state = whole
         self.problem.state = MaterialState(whole.Cp_inv[self._points].copy(),
                                            whole.alpha[self._points].copy())
 

@@ -137,9 +137,11 @@ def cmd_compare(args):
         print(f"\ninterrupted: the finished steps are in {out}; compare cannot resume, "
               f"run it again to start over", file=sys.stderr)
         return 130
+    failed = [m for m, (_, result) in runs.items() if not result.completed]
+    if not is_root():  # under mpiexec only rank 0 writes and prints
+        return 1 if failed else 0
     report = write_comparison(runs, out, args.set, str(path))
     print(f"report: {report}")
-    failed = [m for m, (_, result) in runs.items() if not result.completed]
     if failed:
         print(f"not completed: {', '.join(failed)}", file=sys.stderr)
     return 1 if failed else 0

@@ -72,7 +72,9 @@ def write_comparison(runs, out, settings=(), source=None):
         lines.append(f"| {key} | " + " | ".join(cells) + " |")
     lines += ["", "![comparison](compare.png)", ""]
     fig, axes = plt.subplots(1, len(runs) + 1, figsize=(5 * (len(runs) + 1), 4.5))
-    vmax = max((runs[m][0].problem.state.alpha.max() for m in runs), default=None)
+    # a partitioned problem's own state is its rank's: rank 0 keeps the whole one
+    vmax = max(((getattr(runs[m][0].problem, "whole_state", None) or runs[m][0].problem.state)
+                .alpha.max() for m in runs), default=None)
     for ax, m in zip(axes, runs):
         sim, result = runs[m]
         art = plot_deformed(ax, sim.problem, result.d,

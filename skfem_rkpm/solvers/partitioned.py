@@ -350,7 +350,7 @@ class DistributedLU(PETScLU):
 
     def __init__(self, partition, reduction, factor_solver="mumps"):
         super().__init__(symmetric=False, factor_solver=factor_solver)
-        self.partition, self.reduction = partition, reduction
+        self.parts, self.reduction = partition, reduction
         self._key = None
         self.system = None
 
@@ -358,7 +358,7 @@ class DistributedLU(PETScLU):
         clock = time.perf_counter()
         n = A.shape[0]
         m = 0 if constraint_rows is None else constraint_rows.shape[0]
-        owner = self._owners(n, (n - m) // len(self.partition.particles), constraint_rows)
+        owner = self._owners(n, (n - m) // len(self.parts.particles), constraint_rows)
         coo = A.local.tocoo()
         key = (n, coo.nnz, hash(coo.row.tobytes()), hash(coo.col.tobytes()),
                hash(owner.tobytes()))
@@ -381,7 +381,7 @@ class DistributedLU(PETScLU):
     def _owners(self, n, ncomp, C):
         """The rank of every row: the particle's, then the multipliers'."""
         owner = np.zeros(n, dtype=np.int64)
-        dofs = self.partition.dof_owners(max(ncomp, 1))
+        dofs = self.parts.dof_owners(max(ncomp, 1))
         owner[:len(dofs)] = dofs
         if C is not None and C.shape[0]:
             big = np.abs(sp.csr_matrix(C)).argmax(axis=1)
@@ -393,23 +393,16 @@ class DistributedLU(PETScLU):
         to be contiguous), preallocated for the entries of ``coo``."""
         PETSc = self.PETSc
         n = len(owner)
-        order = np.argsort(owner, kind="stable")  # new row k is old row order[k]
-        new = np.empty(n, dtype=np.int64)
-        new[order] = np.arange(n)
-        bounds = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.size))])
+        order, new, bounds = self._contiguous_rows(owner)
         r0, r1 = int(bounds[self.rank]), int(bounds[self.rank + 1])
         self._order, self._rows = order, (r0, r1)
         self._destroy()
-        self._mat = PETSc.Mat().create(comm=self.comm)
-        self._mat.setSizes(((r1 - r0, n), (r1 - r0, n)))
-        self._mat.setType(PETSc.Mat.Type.AIJ)
-        self._mat.setPreallocationCOO(new[coo.row].astype(PETSc.IntType),
-                                      new[coo.col].astype(PETSc.IntType))
-        self._b, self._x = self._mat.createVecs()
-        self._gather, self._xall = PETSc.Scatter.toAll(self._x)
-        self._ksp = PETSc.KSP().create(comm=self.comm)
-        self._ksp.setOperators(self._mat)
-        self._configure(self._ksp)
+        mat = PETSc.Mat().create(comm=self.comm)
+        mat.setSizes(((r1 - r0, n), (r1 - r0, n)))
+        mat.setType(PETSc.Mat.Type.AIJ)
+        mat.setPreallocationCOO(new[coo.row].astype(PETSc.IntType),
+                                new[coo.col].astype(PETSc.IntType))
+        self._attach(mat)
 
     def describe(self):
         return (f"PETSc {self.options['factor_solver'].upper()} LU of the ranks' summed "

@@ -148,10 +148,7 @@ class _PETScSolver(Solver):
         PETSc = self.PETSc
         n = A.shape[0]
         owner = row_owners(A, self.size, self.options.get("points"))
-        order = np.argsort(owner, kind="stable")  # new row k is old row order[k]
-        new = np.empty(n, dtype=np.int64)
-        new[order] = np.arange(n)
-        bounds = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.size))])
+        order, new, bounds = self._contiguous_rows(owner)
         r0, r1 = int(bounds[self.rank]), int(bounds[self.rank + 1])
         # the local rows in the new numbering, sorted columns; `take` maps
         # their entries to positions in A.data (the pattern is fixed)
@@ -168,17 +165,33 @@ class _PETScSolver(Solver):
         self.partition = np.diff(bounds)
         self._destroy()
         nlocal = r1 - r0
-        self._mat = PETSc.Mat().createAIJ(size=((nlocal, n), (nlocal, n)),
-                                          csr=(self._indptr, self._indices,
-                                               A.data[self._take]),
-                                          comm=self.comm)
-        self._mat.assemble()
-        self._b, self._x = self._mat.createVecs()
+        mat = PETSc.Mat().createAIJ(size=((nlocal, n), (nlocal, n)),
+                                    csr=(self._indptr, self._indices, A.data[self._take]),
+                                    comm=self.comm)
+        mat.assemble()
+        self._attach(mat)
+        self._fresh = True
+
+    def _contiguous_rows(self, owner):
+        """The renumbering that makes each rank's rows contiguous: ``order``
+        (new row k is old row ``order[k]``), ``new`` (its inverse) and the
+        bounds of the ranks' blocks of new rows."""
+        order = np.argsort(owner, kind="stable")
+        new = np.empty(len(owner), dtype=np.int64)
+        new[order] = np.arange(len(owner))
+        bounds = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=self.size))])
+        return order, new, bounds
+
+    def _attach(self, mat):
+        """Solve with ``mat``: its vectors, the gather of the solution to
+        every rank and the KSP (:meth:`_configure`)."""
+        PETSc = self.PETSc
+        self._mat = mat
+        self._b, self._x = mat.createVecs()
         self._gather, self._xall = PETSc.Scatter.toAll(self._x)
         self._ksp = PETSc.KSP().create(comm=self.comm)
-        self._ksp.setOperators(self._mat)
+        self._ksp.setOperators(mat)
         self._configure(self._ksp)
-        self._fresh = True
 
     def _factor(self, A):
         PETSc = self.PETSc

@@ -25,7 +25,7 @@ import sys
 import time
 
 import numpy as np
-from partitioned_scaling import launch, peak_mb
+from partitioned_scaling import launch, mpi_environment, peak_mb
 
 
 def worker(args):
@@ -64,8 +64,7 @@ def main():
     args = parser.parse_args()
     if args.worker:
         return worker(args)
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
-               OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    env = mpi_environment()
     print(f"{args.dim}D, {args.cells} cells per side, support {args.support}, intorder "
           f"{args.intorder}; load {os.getloadavg()[0]:.1f} at the start")
     print("| P | particles | cells per rank | point-particle pairs per rank (max) "

@@ -103,6 +103,12 @@ def mpiexec():
     return os.environ.get("SKFEM_RKPM_MPIEXEC") or shutil.which("mpiexec")
 
 
+def mpi_environment():
+    """One BLAS thread per rank; Open MPI allowed to start as root."""
+    return dict(os.environ, OPENBLAS_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
+                OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+
+
 def launch(ranks):
     text = subprocess.run([mpiexec(), "--version"], capture_output=True, text=True)
     text = text.stdout + text.stderr
@@ -123,8 +129,7 @@ def main():
     args = parser.parse_args()
     if args.worker:
         return worker(args)
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
-               OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    env = mpi_environment()
     first = None
     print(f"upsetting, {args.cells}x{args.cells} cells, support {args.support}, "
           f"{args.compression:.0%} in {args.steps} steps; load {os.getloadavg()[0]:.1f} at the start")

@@ -1,4 +1,5 @@
-"""Median CPU time of repeated calls, for the benchmark scripts."""
+"""Measurements shared by the benchmark scripts: the median CPU time of
+repeated calls and the resident memory of the process."""
 
 import time
 
@@ -14,3 +15,13 @@ def median_cpu(fun, repeat):
         out = fun()
         times.append(time.process_time() - start)
     return float(np.median(times)), out
+
+
+def resident_mb(key="VmHWM"):
+    """Peak (``VmHWM``) or current (``VmRSS``) resident memory of this
+    process in MB, from ``/proc/self/status`` (NaN where it has none)."""
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith(key + ":"):
+                return int(line.split()[1]) / 1024
+    return float("nan")

@@ -39,17 +39,9 @@ import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _timing import resident_mb  # noqa: E402
 
 PHASES = ("shape", "vci", "layout")
-
-
-def vm_hwm_mb():
-    """Peak resident memory of this process (MB), from /proc/self/status."""
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def divisions(particles):
@@ -103,7 +95,7 @@ def child(particles, repeat):
         runs.append(dict(total=total, sys=os.times().system - kernel, **spent))
     out = {"particles": int(mesh.nvertices), "cells": [nx, ny],
            "pairs": int(len(basis.table.indices)), "runs": len(runs),
-           "peak_mb": vm_hwm_mb()}
+           "peak_mb": resident_mb()}
     for key in runs[0]:
         out[key] = float(np.median([run[key] for run in runs]))
     print("RESULT " + json.dumps(out), flush=True)

@@ -60,19 +60,11 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
+from _timing import resident_mb  # noqa: E402
 
 SIZES = (10000, 17227, 100000)
 CASES = ("rk", "rk-friction", "fem", "fem-friction")
 SYMMETRIC_ONLY = ("qdldl", "cvx-cholmod")
-
-
-def vm_hwm_mb(key="VmHWM"):
-    """Peak (``VmHWM``) or current (``VmRSS``) resident memory in MB."""
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith(key + ":"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def divisions(particles):
@@ -113,7 +105,7 @@ def build(case, particles, folder):
         sp.save_npz(path(folder, case, particles, name), M)
     print("RESULT " + json.dumps(dict(case=case, particles=int(mesh.nvertices), n=K.shape[0],
                                       nnz=int(K.nnz), seconds=time.process_time() - start,
-                                      peak_mb=vm_hwm_mb())), flush=True)
+                                      peak_mb=resident_mb())), flush=True)
 
 
 def matrices(folder, case, particles):
@@ -171,7 +163,7 @@ def child(folder, case, particles, system, backend):
     A.sort_indices()
     A2 = (A + sp.diags(0.01 * A.diagonal())).tocsr()
     A2.sort_indices()
-    base = vm_hwm_mb("VmRSS")
+    base = resident_mb("VmRSS")
     out = dict(base_mb=base, n=A.shape[0], nnz_row=A.nnz / A.shape[0])
     cpu = time.process_time
     if system == "augmented" and backend in SYMMETRIC_ONLY:
@@ -210,7 +202,7 @@ def child(folder, case, particles, system, backend):
         out["residual"] = float(np.linalg.norm(r) / np.linalg.norm(np.concatenate([f, g])))
     if system == "augmented":
         out["residual"] = float(np.linalg.norm(A @ x - f) / np.linalg.norm(f))
-    out["peak_mb"] = vm_hwm_mb()
+    out["peak_mb"] = resident_mb()
     print("RESULT " + json.dumps(out), flush=True)
 
 

@@ -25,7 +25,8 @@ import sys
 import time
 
 import numpy as np
-from partitioned_scaling import launch, mpi_environment, peak_mb
+from _timing import resident_mb
+from partitioned_scaling import launch, mpi_environment
 
 
 def worker(args):
@@ -46,7 +47,7 @@ def worker(args):
                     intorder=args.intorder, elements=parts.cells_of(comm.Get_rank()),
                     reduction=MPIReduction(comm))
     seconds = time.perf_counter() - clock
-    reports = comm.gather(dict(seconds=seconds, peak_mb=peak_mb(), cells=int(basis.nelems),
+    reports = comm.gather(dict(seconds=seconds, peak_mb=resident_mb(), cells=int(basis.nelems),
                                pairs=int(basis.table.indices.size),
                                particles=int(mesh.nvertices)), root=0)
     if comm.Get_rank() == 0:

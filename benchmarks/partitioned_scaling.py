@@ -35,14 +35,7 @@ import sys
 import time
 
 import numpy as np
-
-
-def peak_mb():
-    with open("/proc/self/status") as handle:
-        for line in handle:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024.0
-    return float("nan")
+from _timing import resident_mb
 
 
 def cpu_seconds():
@@ -85,7 +78,7 @@ def worker(args):
     owner = parts.dof_owners(2)
     entries = 0 if K is None else K.nnz
     remote = 0 if K is None else int(np.sum(owner[K.row] != rank))
-    report = dict(rank=rank, ranks=size, cpu=cpu_seconds(), peak_mb=peak_mb(), build=build,
+    report = dict(rank=rank, ranks=size, cpu=cpu_seconds(), peak_mb=resident_mb(), build=build,
                   newton=newton, cells=int(basis.nelems), points=int(problem.npoints),
                   entries=int(entries), remote_entries=remote,
                   iterations=sum(r.spent_iterations for r in result.history),

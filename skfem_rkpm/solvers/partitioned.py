@@ -351,32 +351,31 @@ class DistributedLU(PETScLU):
     def __init__(self, partition, reduction, factor_solver="mumps"):
         super().__init__(symmetric=False, factor_solver=factor_solver)
         self.parts, self.reduction = partition, reduction
-        self._key = None
+        self._owner = None
         self.system = None
 
     def factor(self, A, constraint_rows=None):
-        clock = time.perf_counter()
+        """Factor the sum of the shares ``A``; the matrix and MUMPS's
+        analysis are made again only when some rank's share changes its
+        pattern or the rows change owners (collective)."""
         n = A.shape[0]
         m = 0 if constraint_rows is None else constraint_rows.shape[0]
         owner = self._owners(n, (n - m) // len(self.parts.particles), constraint_rows)
-        coo = A.local.tocoo()
-        key = (n, coo.nnz, hash(coo.row.tobytes()), hash(coo.col.tobytes()),
-               hash(owner.tobytes()))
-        if self.reduction.sum(np.array([float(key != self._key)]))[0] > 0:
-            self._analyze_shares(owner, coo)
-            self._key = key
+        changed = not (self._same_pattern(A.local) and np.array_equal(owner, self._owner))
+        if self.reduction.sum(np.array([float(changed)]))[0] > 0:
+            clock = time.perf_counter()
+            self._analyze_shares(owner, A.local.tocoo())
+            self._owner = owner
+            self._pattern = (A.local.shape, A.local.indptr.copy(), A.local.indices.copy())
             self.stats["analyses"] += 1
-        self._mat.setValuesCOO(coo.data, addv=self.PETSc.InsertMode.INSERT_VALUES)
+            self.stats["analyze_seconds"] += time.perf_counter() - clock
+        return self._factor_timed(A)
+
+    def _set_values(self, A):
+        """The share's values, in the order of its CSR entries (that of the
+        COO entries the matrix was preallocated with)."""
+        self._mat.setValuesCOO(A.local.data, addv=self.PETSc.InsertMode.INSERT_VALUES)
         self._mat.assemble()
-        try:
-            self._ksp.setUp()
-        except self.PETSc.Error as err:
-            raise np.linalg.LinAlgError(f"{self.describe()}: PETSc error {err.ierr} in "
-                                        "the factorization") from err
-        self.A = A
-        self.stats["factorizations"] += 1
-        self.stats["factor_seconds"] += time.perf_counter() - clock
-        return self
 
     def _owners(self, n, ncomp, C):
         """The rank of every row: the particle's, then the multipliers'."""
@@ -407,7 +406,3 @@ class DistributedLU(PETScLU):
     def describe(self):
         return (f"PETSc {self.options['factor_solver'].upper()} LU of the ranks' summed "
                 f"shares ({self._ranks()})")
-
-    def reset(self):
-        super().reset()
-        self._key = None

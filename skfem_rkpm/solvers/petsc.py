@@ -195,15 +195,20 @@ class _PETScSolver(Solver):
 
     def _factor(self, A):
         PETSc = self.PETSc
-        if not self._fresh:  # new values, same pattern: numeric work only
-            self._mat.setValuesCSR(self._indptr, self._indices, A.data[self._take])
-            self._mat.assemble()
-        self._fresh = False
+        self._set_values(A)
         try:
             self._setup(A)
         except PETSc.Error as err:
             raise np.linalg.LinAlgError(f"{self.describe()}: PETSc error {err.ierr} in "
                                         f"the factorization or set-up") from err
+
+    def _set_values(self, A):
+        """Put the values of ``A`` into the PETSc matrix (its pattern is
+        the analysed one): numeric work only."""
+        if not self._fresh:  # the matrix was created with these values
+            self._mat.setValuesCSR(self._indptr, self._indices, A.data[self._take])
+            self._mat.assemble()
+        self._fresh = False
 
     def _setup(self, A):
         self._ksp.setUp()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from skfem_rkpm import SingularMomentError, rk_shape_functions
-from skfem_rkpm.approximation import shape
+from skfem_rkpm.approximation import shape, shape_backend
 from skfem_rkpm.approximation.kernels import cubic_spline
 
 
@@ -119,15 +119,15 @@ def test_auto_and_environment_variable(numba, monkeypatch):
     x = np.random.default_rng(2).uniform(0, 1, (2, 50))
     reference = rk_shape_functions(x, nodes, 2 * h, backend="numpy")
     for value in ("auto", "numba", "numpy", ""):
-        monkeypatch.setenv(shape.BACKEND_VARIABLE, value)
+        monkeypatch.setenv(shape_backend.BACKEND_VARIABLE, value)
         assert_same_table(reference, rk_shape_functions(x, nodes, 2 * h))
-    monkeypatch.setenv(shape.BACKEND_VARIABLE, "fortran")
+    monkeypatch.setenv(shape_backend.BACKEND_VARIABLE, "fortran")
     with pytest.raises(ValueError, match="'auto', 'numpy' or 'numba'"):
         rk_shape_functions(x, nodes, 2 * h)
     # a kernel the compiled path does not know: auto falls back, numba refuses
     def window(z):
         return cubic_spline(z)
-    monkeypatch.delenv(shape.BACKEND_VARIABLE)
+    monkeypatch.delenv(shape_backend.BACKEND_VARIABLE)
     assert_same_table(reference, rk_shape_functions(x, nodes, 2 * h,
                                                     kernel=window))
     with pytest.raises(ValueError, match="covers the kernels"):
@@ -136,30 +136,30 @@ def test_auto_and_environment_variable(numba, monkeypatch):
 
 def test_auto_loads_the_kernel_only_for_large_calls(monkeypatch):
     loads = []
-    monkeypatch.delenv(shape.BACKEND_VARIABLE, raising=False)
-    monkeypatch.setattr(shape, "_loaded", None)
-    monkeypatch.setattr(shape, "_load_compiled", lambda: loads.append(1) or False)
+    monkeypatch.delenv(shape_backend.BACKEND_VARIABLE, raising=False)
+    monkeypatch.setattr(shape_backend, "_loaded", None)
+    monkeypatch.setattr(shape_backend, "_load_compiled", lambda: loads.append(1) or False)
     nodes, h = grid(2, 6)
     x = np.random.default_rng(3).uniform(0, 1, (2, 30))
     rk_shape_functions(x, nodes, 2 * h)
     assert not loads
-    monkeypatch.setattr(shape, "AUTO_MIN_POINTS", 10)
+    monkeypatch.setattr(shape_backend, "AUTO_MIN_POINTS", 10)
     rk_shape_functions(x, nodes, 2 * h)
     assert loads
 
 
 def test_numba_backend_without_numba_is_a_clear_error(monkeypatch):
     """Simulate an installation without numba."""
-    monkeypatch.delenv(shape.BACKEND_VARIABLE, raising=False)
+    monkeypatch.delenv(shape_backend.BACKEND_VARIABLE, raising=False)
     monkeypatch.setitem(sys.modules, "numba", None)
     monkeypatch.setitem(sys.modules, "skfem_rkpm.approximation._shape_numba", None)
-    monkeypatch.setattr(shape, "_loaded", None)
+    monkeypatch.setattr(shape_backend, "_loaded", None)
     nodes, h = grid(2, 6)
     x = np.random.default_rng(4).uniform(0, 1, (2, 30))
     with pytest.raises(ImportError, match=r"pip install skfem-rkpm\[fast\]") as info:
         rk_shape_functions(x, nodes, 2 * h, backend="numba")
     assert isinstance(info.value, shape.BackendUnavailableError)
     # auto silently uses numpy, also above the size limit
-    monkeypatch.setattr(shape, "AUTO_MIN_POINTS", 1)
+    monkeypatch.setattr(shape_backend, "AUTO_MIN_POINTS", 1)
     table = rk_shape_functions(x, nodes, 2 * h)
     assert_same_table(rk_shape_functions(x, nodes, 2 * h, backend="numpy"), table)

@@ -27,8 +27,6 @@ path stays the reference: it handles every case, and every error is
 reported by it.
 """
 
-import importlib
-import os
 from dataclasses import dataclass
 from itertools import combinations_with_replacement
 
@@ -36,7 +34,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .kernels import KERNELS, get_kernel
+from .kernels import get_kernel
+from .shape_backend import BackendUnavailableError, compiled_backend, kernel_name
 
 __all__ = [
     "BackendUnavailableError",
@@ -51,18 +50,6 @@ __all__ = [
 RCOND_MIN = 1e-10
 #: points per block in the batched solve (keeps the pair arrays in cache)
 POINTS_PER_BLOCK = 4096
-#: environment variable with the default backend ("auto", "numpy", "numba")
-BACKEND_VARIABLE = "SKFEM_RKPM_SHAPE_BACKEND"
-#: "auto" loads the compiled kernel only for a call with at least this many
-#: evaluation points: loading numba and the cached machine code takes
-#: 0.3-0.4 s of CPU, which the compiled kernel saves back (1-3 µs per point)
-#: on about this many points (docs/performance.md, "Compiled kernel
-#: (optional)"); once loaded, it is used for every call
-AUTO_MIN_POINTS = 200_000
-
-
-class BackendUnavailableError(ImportError):
-    """The requested shape-function backend cannot be imported."""
 
 
 class SingularMomentError(ValueError):
@@ -445,7 +432,7 @@ def rk_shape_functions(
         raise ValueError(f"support must be 'radial' or 'box', not {support!r}")
     window = get_kernel(kernel)
     exps = monomial_exponents(dim, order)
-    compiled = _compiled_backend(backend, window, dim, npoints)
+    compiled = compiled_backend(backend, window, dim, npoints)
     if compiled is not None:
         table = _build_compiled(compiled, x, nodes, radius, exps, window,
                                 support, gradients, rcond_min)
@@ -460,59 +447,6 @@ def rk_shape_functions(
     return table
 
 
-def _load_compiled():
-    """The compiled kernel module; ImportError if numba is missing."""
-    return importlib.import_module("skfem_rkpm.approximation._shape_numba")
-
-
-#: the compiled kernel once a call has used it (then "auto" uses it always)
-_loaded = None
-
-
-def _compiled_backend(backend, window, dim, npoints):
-    """The compiled kernel module if ``backend`` selects it, else None."""
-    global _loaded
-    if backend is None:
-        backend = os.environ.get(BACKEND_VARIABLE, "").strip() or "auto"
-    if backend not in ("auto", "numpy", "numba"):
-        raise ValueError(f"backend must be 'auto', 'numpy' or 'numba', not "
-                         f"{backend!r} (from the argument or {BACKEND_VARIABLE})")
-    if backend == "numpy":
-        return None
-    covered = 1 <= dim <= 3 and _kernel_name(window) is not None
-    if backend == "numba":
-        try:
-            module = _load_compiled()
-        except ImportError as err:
-            raise BackendUnavailableError(
-                "the 'numba' backend of rk_shape_functions needs numba: "
-                "pip install skfem-rkpm[fast] (or pip install numba), or use "
-                f"backend='numpy' ({err})") from err
-        if not covered:
-            raise ValueError(
-                f"the 'numba' backend covers the kernels {sorted(KERNELS)} in 1 to "
-                f"3 dimensions, not kernel {window!r} in {dim}D; use "
-                "backend='numpy' or 'auto'")
-        _loaded = module
-        return module
-    if not covered:
-        return None
-    if _loaded is None and npoints >= AUTO_MIN_POINTS:
-        try:
-            _loaded = _load_compiled()
-        except ImportError:
-            _loaded = False  # numba is not installed: numpy from now on
-    return _loaded or None
-
-
-def _kernel_name(window):
-    """Name of a built-in kernel function, None for any other callable."""
-    for name, function in KERNELS.items():
-        if window is function:
-            return name
-    return None
-
-
 def _build_compiled(module, x, nodes, radius, exps, window, support, gradients,
                     rcond_min):
     """The table from the compiled kernel, or None if a point fails.
@@ -522,7 +456,7 @@ def _build_compiled(module, x, nodes, radius, exps, window, support, gradients,
     numpy path decides (and reports) which points fail.
     """
     build, lowered = _monomial_recurrences(exps)
-    arrays = module.build(x, nodes, radius, build, lowered, _kernel_name(window),
+    arrays = module.build(x, nodes, radius, build, lowered, kernel_name(window),
                           support, gradients)
     if arrays is None:
         return None

@@ -48,7 +48,7 @@ def worker(args):
                     reduction=MPIReduction(comm))
     seconds = time.perf_counter() - clock
     reports = comm.gather(dict(seconds=seconds, peak_mb=resident_mb(), cells=int(basis.nelems),
-                               pairs=int(basis.table.indices.size),
+                               pairs=basis.npairs,
                                particles=int(mesh.nvertices)), root=0)
     if comm.Get_rank() == 0:
         print(json.dumps(reports))

@@ -191,3 +191,40 @@ def test_per_cell_particle_lists_are_the_sorted_unique_particles_of_each_cell():
         expected = np.unique(b.table.indices[pairs])
         np.testing.assert_array_equal(indices[indptr[e]:indptr[e + 1]], expected)
         np.testing.assert_array_equal(expected[slot[pairs]], b.table.indices[pairs])
+
+
+def test_the_pair_table_of_a_basis_is_the_shape_table_it_was_laid_out_from():
+    """The basis keeps the per-cell layout only; ``basis.table`` gathers the
+    pair layout back from it: the same pairs, in the same order, with the
+    same bits as shape functions computed afresh at the quadrature points."""
+    from skfem_rkpm.meshes import rectangle
+
+    mesh = rectangle(1.0, 0.7, 9, 6, kind="tri", perturb=0.2, seed=2)
+    for integration in ("gauss", "vci", "vci_symmetric"):
+        b = RKBasis(mesh, vector=True, support=2.5, intorder=3, integration=integration)
+        fresh = b._shape_table(b.global_coordinates().reshape(2, -1))
+        table = b.table
+        np.testing.assert_array_equal(table.indptr, fresh.indptr)
+        np.testing.assert_array_equal(table.indices, fresh.indices)
+        np.testing.assert_array_equal(table.values, fresh.values)
+        np.testing.assert_array_equal(table.grads, fresh.grads)
+        # the test gradients: the exact ones, or corrected by VCI
+        corrected = np.abs(b.test_grads - fresh.grads).max() / np.abs(fresh.grads).max()
+        assert (corrected > 1e-6) == (integration != "gauss")
+        np.testing.assert_array_equal(b.trial.test_grads, fresh.grads
+                                      if integration == "vci" else b.test_grads)
+
+
+def test_a_basis_keeps_no_array_per_pair_but_its_slots():
+    """Values and gradients are held once, in the padded per-cell arrays; the
+    only array with one entry per pair is the slot of each pair in its cell
+    (4 bytes per pair)."""
+    from skfem_rkpm.meshes import rectangle
+
+    b = RKBasis(rectangle(1.0, 1.0, 8, 8), vector=True, support=3.0)
+    per_pair = [name for name, value in vars(b).items()
+                if isinstance(value, np.ndarray) and b.npairs in value.shape]
+    per_pair += [f"_cells[{k}]" for k, value in enumerate(b._cells)
+                 if b.npairs in value.shape]
+    assert per_pair == ["_cells[2]"]
+    assert b._cells[2].itemsize == 4

@@ -295,21 +295,22 @@ class RKBasis(CellViews, RKBase):
         # once, for all of them, with a dilation that works everywhere
         sizes = np.cumsum([0, xq.shape[1], xb.shape[1], nodes.shape[1]])
         everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes)
-        table, btable, ntable = (cell_layout.table_rows(everything, a, b)
+        # the cell rows stay views: laying them out below frees them array by array
+        table, btable, ntable = (cell_layout.table_rows(everything, a, b, copy=a > 0)
                                  for a, b in zip(sizes[:-1], sizes[1:]))
-        del everything  # its rows live on in the three tables
+        del everything
         self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
             nodes.shape[0] if vector else 1), format="csr")
-        test_grads = table.grads
+        del ntable
         if integration in ("vci", "vci_symmetric"):
-            test_grads = vci_gradients(
+            table.test_grads = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE)
-        for built in (table, btable, ntable):  # only VCI reads them: 8 bytes per pair
-            built.kernel = None
-        self._setup(mesh, geometry, table, test_grads, nodes, vector)
+        del btable
+        table.kernel = None  # only VCI reads it: 8 bytes per pair
+        self._setup(mesh, geometry, table, nodes, vector, release=True)
         if part is None:
             self._restrict(elements)
         else:
@@ -341,7 +342,7 @@ class RKBasis(CellViews, RKBase):
                              self.segment_points, self.axisymmetric,
                              pieces=bool(self.stabilization), smoothing=self.smoothing)
         self.nodal_quadrature = q
-        self._setup(mesh, q.geometry, q.table, q.table.grads, nodes, vector)
+        self._setup(mesh, q.geometry, q.table, nodes, vector)
 
     def _shape_table(self, x, nodes=None, gradients=True):
         return shape_functions(
@@ -358,13 +359,11 @@ class RKBasis(CellViews, RKBase):
         With ``integration="gauss"`` or ``"vci_symmetric"`` this is the basis
         itself.
         """
-        if self.test_grads is self.table.grads or self.integration == "vci_symmetric":
+        if self._exact_grads is None or self.integration == "vci_symmetric":
             return self
         if getattr(self, "_trial", None) is None:
             trial = copy.copy(self)
-            _, _, trial.grads = cell_layout.padded(self.table, self.nelems, self.X.shape[-1],
-                                        self.table.grads, self._cells)
-            trial.test_grads = self.table.grads
+            trial.grads, trial._exact_grads = self._exact_grads, None
             trial._basis = None
             trial._trial = trial
             self._trial = trial
@@ -525,7 +524,7 @@ class RKFacetBasis(FacetViews, RKBase):
         xb = geometry.global_coordinates().reshape(mesh.dim(), -1)
         table = basis._shape_table(xb)
         self.radius = basis.radius
-        self._setup(mesh, geometry, table, table.grads, basis.nodes, basis.vector)
+        self._setup(mesh, geometry, table, basis.nodes, basis.vector, release=True)
 
     def default_parameters(self):
         return self.geometry.default_parameters()

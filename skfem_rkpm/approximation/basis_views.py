@@ -79,16 +79,17 @@ def linear_mesh_class(mesh):
 
 
 def _select_rows(table, rows):
-    """The rows ``rows`` (evaluation points) of a shape table, and the pairs
-    they hold (indices into the table's pair arrays)."""
+    """The rows ``rows`` (evaluation points) of a shape table."""
     start, stop = table.indptr[rows], table.indptr[rows + 1]
     count = stop - start
     indptr = np.concatenate([[0], np.cumsum(count)])
     pick = np.repeat(start - indptr[:-1], count) + np.arange(indptr[-1])
-    sub = ShapeTable(indptr, table.indices[pick], table.values[pick],
-                     None if table.grads is None else table.grads[:, pick],
-                     table.nnodes, None if table.kernel is None else table.kernel[pick])
-    return sub, pick
+
+    def picked(a):
+        return None if a is None else a[..., pick]
+
+    return ShapeTable(indptr, table.indices[pick], table.values[pick], picked(table.grads),
+                      table.nnodes, picked(table.kernel), picked(table.test_grads))
 
 
 class _DofIdioms:
@@ -207,14 +208,12 @@ class CellViews(_DofIdioms):
                              f"of the mesh, at least one; got {elements!r}")
         nqp = whole.X.shape[-1]
         rows = (tind[:, None] * nqp + np.arange(nqp)).ravel()
-        table, pick = _select_rows(whole.table, rows)
-        test_grads = (table.grads if whole.test_grads is whole.table.grads
-                      else whole.test_grads[:, pick])
+        table = _select_rows(whole._pair_table(test=True), rows)
         geometry = CellBasis(self.mesh, whole.geometry.elem, mapping=whole.mapping,
                              quadrature=whole.quadrature, elements=tind)
         sub = copy.copy(whole)
         sub._basis = sub._trial = None
-        sub._setup(self.mesh, geometry, table, test_grads, whole.nodes, whole.vector)
+        sub._setup(self.mesh, geometry, table, whole.nodes, whole.vector, release=True)
         sub.tind = tind
         sub._whole = whole
         return sub

@@ -8,17 +8,20 @@ import scipy.sparse as sp
 
 from .shape import ShapeTable
 
-__all__ = ["table_rows", "cell_particles", "padded"]
+__all__ = ["table_rows", "cell_particles", "padded", "pair_entries", "pair_table",
+           "gathered"]
 
 
-def table_rows(table, start, stop):
-    """The rows ``start:stop`` (evaluation points) of a shape table."""
+def table_rows(table, start, stop, copy=False):
+    """The rows ``start:stop`` (evaluation points) of a shape table: views of
+    its arrays, or copies that keep nothing of ``table`` alive."""
     lo, hi = table.indptr[start], table.indptr[stop]
-    return ShapeTable(table.indptr[start:stop + 1] - lo, table.indices[lo:hi],
-                      table.values[lo:hi],
-                      None if table.grads is None else table.grads[:, lo:hi],
+    take = (lambda a: a[..., lo:hi].copy()) if copy else (lambda a: a[..., lo:hi])
+    return ShapeTable(table.indptr[start:stop + 1] - lo, take(table.indices),
+                      take(table.values),
+                      None if table.grads is None else take(table.grads),
                       table.nnodes,
-                      None if table.kernel is None else table.kernel[lo:hi])
+                      None if table.kernel is None else take(table.kernel))
 
 
 def cell_particles(table, nelems, nqp):
@@ -52,12 +55,20 @@ def cell_particles(table, nelems, nqp):
     return indptr, indices, slot
 
 
-def padded(table, nelems, nqp, grads, cells=None):
+def padded(table, nelems, nqp, cells=None, release=False):
     """Per-cell padded node lists and values from a pair table.
 
-    ``cells``: :func:`cell_particles` of the table if already known.
-    Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems, nqp)
-    and ``grads`` (dim, nloc, nelems, nqp) (None if ``grads`` is None).
+    ``cells``:
+    :func:`cell_particles` of the table if already known.  With ``release``
+    the table's pair arrays are dropped (set to None) as soon as they are
+    laid out, so that the pair and the padded copy of one array at most
+    are held together.
+
+    Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems,
+    nqp), ``grads`` (dim, nloc, nelems, nqp) of the test functions and the
+    table's own gradients ``exact`` in the same layout where the table has
+    ``test_grads`` of its own (VCI; else None); the gradients are None if
+    the table has none.
     """
     indptr, indices, slot = cells or cell_particles(table, nelems, nqp)
     count = np.diff(indptr)
@@ -66,16 +77,70 @@ def padded(table, nelems, nqp, grads, cells=None):
     element_nodes = np.repeat(indices[indptr[:-1]][None, :], nloc, axis=0)
     element_nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
                   np.repeat(np.arange(nelems), count)] = indices
-    # pair (slot, point q = cell nqp + qp) goes to entry slot nq + q of the
-    # flattened (nloc, nelems, nqp) arrays
-    npoints = nelems * nqp
-    flat = slot * npoints
-    flat += table.rows
-    values = np.zeros((nloc, nelems, nqp))
-    values.reshape(-1)[flat] = table.values
-    g = None
-    if grads is not None:
-        g = np.zeros((grads.shape[0], nloc, nelems, nqp))
-        for k in range(grads.shape[0]):
-            g[k].reshape(-1)[flat] = grads[k]
-    return element_nodes, values, g
+    _, flat = pair_entries(table.indptr, (indptr, indices, slot), nelems, nqp)
+    if release:
+        table.indices = None
+    values = _scatter(table.values, flat, (nloc, nelems, nqp))
+    if release:
+        table.values = None
+    exact = None if table.grads is None else _scatter(table.grads, flat,
+                                                     (nloc, nelems, nqp))
+    if release:
+        table.grads = None
+    if table.test_grads is None:
+        return element_nodes, values, exact, None
+    test = _scatter(table.test_grads, flat, (nloc, nelems, nqp))
+    if release:
+        table.test_grads = None
+    return element_nodes, values, test, exact
+
+
+def _scatter(pairs, flat, shape):
+    """Pair values (or rows of them, one per gradient component) put at the
+    entries ``flat`` of zero arrays of ``shape``."""
+    if pairs.ndim == 1:
+        out = np.zeros(shape)
+        out.reshape(-1)[flat] = pairs
+        return out
+    out = np.zeros((pairs.shape[0],) + shape)
+    for k in range(pairs.shape[0]):
+        out[k].reshape(-1)[flat] = pairs[k]
+    return out
+
+
+def pair_entries(indptr, cells, nelems, nqp):
+    """Where each pair of a table sits in its padded layout: its cell and its
+    entry of the flattened (nloc, nelems, nqp) arrays, ``slot nelems nqp +
+    q`` for the pair of point ``q = cell nqp + qp`` in slot ``slot`` of its
+    cell.  ``indptr``: the pairs of each quadrature point in that table;
+    ``cells``: its :func:`cell_particles`."""
+    rows = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    slot = cells[2]
+    flat = slot.astype(np.int64)
+    flat *= nelems * nqp
+    flat += rows
+    rows //= nqp
+    return rows, flat
+
+
+def pair_table(indptr, nnodes, cells, element_nodes, values, grads, test_grads=None):
+    """The pair (CSR) table of a padded layout, the pairs in the order of the
+    table it was laid out from: the inverse of :func:`padded`.
+
+    ``indptr`` and ``cells`` as for :func:`pair_entries`; ``values``
+    (nloc, nelems, nqp), ``grads`` and ``test_grads`` (dim, nloc, nelems,
+    nqp) or None.
+    """
+    _, nelems, nqp = values.shape
+    cell, flat = pair_entries(indptr, cells, nelems, nqp)
+    indices = element_nodes[cells[2], cell]
+    del cell
+    return ShapeTable(indptr, indices, values.reshape(-1)[flat],
+                      None if grads is None else gathered(grads, flat), nnodes,
+                      test_grads=None if test_grads is None else gathered(test_grads, flat))
+
+
+def gathered(grads, flat):
+    """Padded gradients (dim, nloc, nelems, nqp) at the pairs ``flat``
+    (:func:`pair_entries`), shape (dim, npairs)."""
+    return np.stack([g.reshape(-1)[flat] for g in grads])

@@ -55,7 +55,7 @@ class RKInteriorFacetBasis(RKFacetBasis):
                                       if intorder is None else intorder)
         table = basis._shape_table(geometry.global_coordinates().reshape(mesh.dim(), -1))
         self.radius = basis.radius
-        self._setup(mesh, geometry, table, table.grads, basis.nodes, basis.vector)
+        self._setup(mesh, geometry, table, basis.nodes, basis.vector, release=True)
 
     def with_element(self, elem):
         """The FEM ``InteriorFacetBasis`` of ``elem`` on the same side, facets

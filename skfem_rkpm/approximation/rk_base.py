@@ -23,24 +23,62 @@ __all__ = ["RKBase"]
 class RKBase(AbstractBasis):
     """What cell and facet RK bases share: dofs, local functions, fields."""
 
-    def _setup(self, mesh, geometry, table, test_grads, nodes, vector):
+    def _setup(self, mesh, geometry, table, nodes, vector, release=False):
+        """Lay out ``table`` per cell (:func:`.cell_layout.padded`), with
+        its ``test_grads`` where it has them (VCI).
+
+        The basis keeps the padded arrays only; :attr:`table` and
+        :attr:`test_grads` gather the pair layout from them when asked.
+        ``release``: the table's pair arrays may be dropped while they are
+        laid out (the caller keeps no use for them).
+        """
         self.mesh = mesh
         self.geometry = geometry
         self.X, self.W = geometry.X, geometry.W
         self.dx = geometry.dx
         self.nelems = geometry.nelems
         self.nodes = nodes
-        self.table = table
-        self.test_grads = test_grads
         self.ncomp = nodes.shape[0] if vector else 1
         self.tind = None
         self.mapping = geometry.mapping
         nqp = self.X.shape[-1]
+        self._pairs = table.indptr
         self._cells = cell_layout.cell_particles(table, self.nelems, nqp)
-        self.element_nodes, self.values, self.grads = cell_layout.padded(
-            table, self.nelems, nqp, test_grads, self._cells
-        )
+        self.element_nodes, self.values, self.grads, self._exact_grads = cell_layout.padded(
+            table, self.nelems, nqp, self._cells, release=release)
         self.Nbfun = self.ncomp * self.element_nodes.shape[0]
+
+    @property
+    def npairs(self):
+        """Pairs of a particle and a quadrature point its support reaches."""
+        return int(self._pairs[-1])
+
+    @property
+    def table(self):
+        """The shape functions and their exact gradients in pair (CSR) layout,
+        a :class:`~.shape.ShapeTable` gathered from the padded arrays at every
+        call (the basis keeps one copy of each value: the per-cell layout)."""
+        return self._pair_table()
+
+    def _pair_table(self, test=False):
+        """:attr:`table`, with its ``test_grads`` if ``test`` and the basis
+        has corrected ones (VCI)."""
+        exact = self._exact_grads
+        return cell_layout.pair_table(
+            self._pairs, self.nodes.shape[1], self._cells, self.element_nodes, self.values,
+            self.grads if exact is None else exact,
+            self.grads if test and exact is not None else None)
+
+    @property
+    def test_grads(self):
+        """The test functions' gradients in the pair order of :attr:`table`,
+        shape (dim, npairs): the VCI-corrected ones where they differ from
+        the exact gradients, gathered from the padded arrays."""
+        if self.grads is None:
+            return None
+        _, flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
+                                           self.X.shape[-1])
+        return cell_layout.gathered(self.grads, flat)
 
     # -- dof numbering -----------------------------------------------------
     @property
@@ -140,11 +178,11 @@ class RKBase(AbstractBasis):
         or (dim, nelems, nqp) for vector bases, with ``.grad``.
         """
         comps = self._components(w)
-        A = self.table.matrix()
-        value = self._shape_of(comps @ A.T)
+        table = self.table
+        value = self._shape_of(comps @ table.matrix().T)
         grad = None
-        if self.table.grads is not None:
-            grad = np.stack([comps @ self.table.gradient_matrix(k).T
+        if table.grads is not None:
+            grad = np.stack([comps @ table.gradient_matrix(k).T
                              for k in range(self.nodes.shape[0])], axis=-2)
             grad = self._shape_of(grad)
         if self.ncomp == 1:

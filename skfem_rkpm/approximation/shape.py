@@ -96,6 +96,9 @@ class ShapeTable:
         The kernel (window) ``φ(X_q - X_I; a_I)`` of each pair, Eq. (3.12),
         as the shape functions were built with it (VCI weights its
         corrections with it).
+    test_grads : ndarray, shape (dim, npairs) or None
+        The gradients of the test functions where they are not ``grads``:
+        the corrected ones of variationally consistent integration (VCI).
     """
 
     indptr: np.ndarray
@@ -104,6 +107,7 @@ class ShapeTable:
     grads: np.ndarray
     nnodes: int
     kernel: np.ndarray = None
+    test_grads: np.ndarray = None
 
     @property
     def npoints(self):

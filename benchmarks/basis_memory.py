@@ -34,7 +34,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 from _timing import resident_mb  # noqa: E402
-from basis_build import divisions  # noqa: E402
+from basis_build import divisions, npairs  # noqa: E402
 
 PHASES = ("shape", "vci", "layout")
 
@@ -145,11 +145,6 @@ def figure(out, path):
     ax.set_ylim(bottom=0)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-
-
-def npairs(basis):
-    """Shape-function pairs of a basis (older versions: its table's length)."""
-    return getattr(basis, "npairs", None) or len(basis.table.indices)
 
 
 def main():

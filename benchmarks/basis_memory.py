@@ -15,7 +15,9 @@ basis's arrays are listed with their bytes per pair (a pair: one particle
 reaching one quadrature point), and ``basis.trial`` (the uncorrected trial
 gradients that the non-symmetric VCI tangent reads) is formed and counted
 too.  ``--figure`` writes the trace (resident GB against seconds, phases
-shaded); ``--json`` the numbers.
+shaded; ``--against FILE`` adds the trace of another build saved with
+``--json``, e.g. of another version of the package put first on
+``PYTHONPATH``); ``--json`` the numbers.
 
 Run:  python benchmarks/basis_memory.py --particles 1e5 --figure docs/figures/basis_memory_2d.png
       python benchmarks/basis_memory.py --dim 3 --cells 30
@@ -121,7 +123,7 @@ def build(args, trace):
     return RKBasis(mesh, vector=True, support=3.0, intorder=7)
 
 
-def figure(out, path):
+def figure(out, path, against=None):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -134,9 +136,13 @@ def figure(out, path):
         ax.axvspan(begin, end, color=colors[name], alpha=0.25,
                    label=None if name in labelled else name)
         labelled.add(name)
-    ax.plot(t, rss / 1024, color="k", lw=1.2, label="resident memory")
+    ax.plot(t, rss / 1024, color="k", lw=1.2, label=f"resident memory ({out['label']})")
     ax.axhline(out["kept_mb"] / 1024 + out["before_mb"] / 1024, color="tab:red", ls="--",
                lw=1, label="arrays the basis keeps")
+    if against is not None:  # the trace of another version, its phases not shaded
+        t, rss = np.array(against["samples"]).T
+        ax.plot(t, rss / 1024, color="0.5", lw=1.2, ls=":",
+                label=f"resident memory ({against.get('label', 'other build')})")
     ax.set_xlabel("time since the build started (s, wall)")
     ax.set_ylabel("resident memory (GB)")
     ax.set_title(f"RKBasis build, {out['particles']:,} particles, "
@@ -155,6 +161,9 @@ def main():
     parser.add_argument("--interval", type=float, default=0.02)
     parser.add_argument("--figure", default=None)
     parser.add_argument("--json", default=None)
+    parser.add_argument("--label", default="this version", help="of the trace in the figure")
+    parser.add_argument("--against", default=None,
+                        help="JSON of another build (--json) drawn in the figure too")
     args = parser.parse_args()
     try:  # load the compiled kernel (if installed) before the trace
         from skfem_rkpm.approximation.shape import rk_shape_functions
@@ -178,7 +187,8 @@ def main():
                cpu_s=cpu, before_mb=before, peak_mb=resident_mb(),
                after_mb=resident_mb("VmRSS"), kept_mb=sum(b for _, b in kept) / 2**20,
                trial_mb=sum(b for _, b in trial_only) / 2**20,
-               load=os.getloadavg(), samples=trace.samples, phases=trace.phases)
+               load=os.getloadavg(), samples=trace.samples, phases=trace.phases,
+               label=args.label)
     print(f"{out['particles']:,} particles, {pairs:.3e} pairs, {out['cells']:,} cells x "
           f"{out['nqp']} points, {out['nloc']} local functions per cell; build {cpu:.1f} CPU s; "
           f"load {out['load'][0]:.2f}")
@@ -206,7 +216,11 @@ def main():
         with open(args.json, "w") as f:
             json.dump(out, f)
     if args.figure:
-        figure(out, args.figure)
+        against = None
+        if args.against:
+            with open(args.against) as f:
+                against = json.load(f)
+        figure(out, args.figure, against)
 
 
 if __name__ == "__main__":

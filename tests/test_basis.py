@@ -218,13 +218,24 @@ def test_the_pair_table_of_a_basis_is_the_shape_table_it_was_laid_out_from():
 def test_a_basis_keeps_no_array_per_pair_but_its_slots():
     """Values and gradients are held once, in the padded per-cell arrays; the
     only array with one entry per pair is the slot of each pair in its cell
-    (4 bytes per pair)."""
+    (4 bytes per pair), and, with VCI, the exact gradients until the trial
+    basis lays them out."""
     from skfem_rkpm.meshes import rectangle
 
-    b = RKBasis(rectangle(1.0, 1.0, 8, 8), vector=True, support=3.0)
-    per_pair = [name for name, value in vars(b).items()
-                if isinstance(value, np.ndarray) and b.npairs in value.shape]
-    per_pair += [f"_cells[{k}]" for k, value in enumerate(b._cells)
-                 if b.npairs in value.shape]
-    assert per_pair == ["_cells[2]"]
-    assert b._cells[2].itemsize == 4
+    def per_pair(b):
+        names = [name for name, value in vars(b).items()
+                 if isinstance(value, np.ndarray) and b.npairs in value.shape]
+        return names + [f"_cells[{k}]" for k, value in enumerate(b._cells)
+                        if b.npairs in value.shape]
+
+    mesh = rectangle(1.0, 1.0, 8, 8)
+    b = RKBasis(mesh, vector=True, support=3.0, integration="gauss")
+    assert per_pair(b) == ["_cells[2]"] and b._cells[2].itemsize == 4
+    b = RKBasis(mesh, vector=True, support=3.0)
+    assert per_pair(b) == ["_exact_grads", "_cells[2]"]
+    exact = b.table.grads
+    trial = b.trial
+    assert per_pair(b) == per_pair(trial) == ["_cells[2]"]
+    np.testing.assert_array_equal(b.table.grads, exact)
+    np.testing.assert_array_equal(trial.table.grads, exact)
+    np.testing.assert_array_equal(trial.test_grads, exact)

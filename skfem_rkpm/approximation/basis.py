@@ -363,7 +363,7 @@ class RKBasis(CellViews, RKBase):
             return self
         if getattr(self, "_trial", None) is None:
             trial = copy.copy(self)
-            trial.grads, trial._exact_grads = self._exact_grads, None
+            trial.grads, trial._exact_grads = self._exact_layout(), None
             trial._basis = None
             trial._trial = trial
             self._trial = trial

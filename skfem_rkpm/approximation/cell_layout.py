@@ -8,8 +8,8 @@ import scipy.sparse as sp
 
 from .shape import ShapeTable
 
-__all__ = ["table_rows", "cell_particles", "padded", "pair_entries", "pair_table",
-           "gathered"]
+__all__ = ["table_rows", "cell_particles", "padded", "scattered", "pair_entries",
+           "pair_table", "gathered"]
 
 
 def table_rows(table, start, stop, copy=False):
@@ -65,10 +65,10 @@ def padded(table, nelems, nqp, cells=None, release=False):
     are held together.
 
     Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems,
-    nqp), ``grads`` (dim, nloc, nelems, nqp) of the test functions and the
-    table's own gradients ``exact`` in the same layout where the table has
-    ``test_grads`` of its own (VCI; else None); the gradients are None if
-    the table has none.
+    nqp) and ``grads`` (dim, nloc, nelems, nqp) of the test functions
+    (None if the table has no gradients), and, where the table has
+    ``test_grads`` of its own (VCI), its exact gradients as they are, pairs
+    (dim, npairs), else None: :func:`scattered` lays them out when needed.
     """
     indptr, indices, slot = cells or cell_particles(table, nelems, nqp)
     count = np.diff(indptr)
@@ -80,24 +80,22 @@ def padded(table, nelems, nqp, cells=None, release=False):
     _, flat = pair_entries(table.indptr, (indptr, indices, slot), nelems, nqp)
     if release:
         table.indices = None
-    shape = (nloc, nelems, nqp)
+    test = "grads" if table.test_grads is None else "test_grads"
     laid = {}
-    # the gradients first: the pair arrays go as the padded ones come, and the
-    # smallest (values) is padded last (3D: 128 instead of 136 bytes per pair at most)
-    for name in ("test_grads", "grads", "values"):
+    # the gradients first: their pair array goes as the padded one comes
+    for name in (test, "values"):
         pairs = getattr(table, name)
-        laid[name] = None if pairs is None else _scatter(pairs, flat, shape)
+        laid[name] = None if pairs is None else scattered(pairs, flat, (nloc, nelems, nqp))
         if release:
             setattr(table, name, None)
         del pairs
-    if laid["test_grads"] is None:
-        return element_nodes, laid["values"], laid["grads"], None
-    return element_nodes, laid["values"], laid["test_grads"], laid["grads"]
+    return (element_nodes, laid["values"], laid[test],
+            None if test == "grads" else table.grads)
 
 
-def _scatter(pairs, flat, shape):
+def scattered(pairs, flat, shape):
     """Pair values (or rows of them, one per gradient component) put at the
-    entries ``flat`` of zero arrays of ``shape``."""
+    entries ``flat`` (:func:`pair_entries`) of zero arrays of ``shape``."""
     if pairs.ndim == 1:
         out = np.zeros(shape)
         out.reshape(-1)[flat] = pairs

@@ -27,8 +27,10 @@ class RKBase(AbstractBasis):
         """Lay out ``table`` per cell (:func:`.cell_layout.padded`), with
         its ``test_grads`` where it has them (VCI).
 
-        The basis keeps the padded arrays only; :attr:`table` and
-        :attr:`test_grads` gather the pair layout from them when asked.
+        The basis keeps the padded arrays (and, with VCI, the exact gradients
+        as pairs until :meth:`_exact_layout` lays them out for the trial
+        basis); :attr:`table` and :attr:`test_grads` gather the pair layout
+        from them when asked.
         ``release``: the table's pair arrays may be dropped while they are
         laid out (the caller keeps no use for them).
         """
@@ -64,10 +66,26 @@ class RKBase(AbstractBasis):
         """:attr:`table`, with its ``test_grads`` if ``test`` and the basis
         has corrected ones (VCI)."""
         exact = self._exact_grads
-        return cell_layout.pair_table(
-            self._pairs, self.nodes.shape[1], self._cells, self.element_nodes, self.values,
-            self.grads if exact is None else exact,
-            self.grads if test and exact is not None else None)
+        if exact is None or exact.ndim == 4:
+            return cell_layout.pair_table(
+                self._pairs, self.nodes.shape[1], self._cells, self.element_nodes,
+                self.values, self.grads if exact is None else exact,
+                self.grads if test and exact is not None else None)
+        table = cell_layout.pair_table(self._pairs, self.nodes.shape[1], self._cells,
+                                       self.element_nodes, self.values, None,
+                                       self.grads if test else None)
+        table.grads = exact  # still pairs
+        return table
+
+    def _exact_layout(self):
+        """The exact gradients of a VCI basis in the padded layout (dim, nloc,
+        nelems, nqp), laid out from their pairs at the first call."""
+        if self._exact_grads.ndim == 2:
+            _, flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
+                                               self.X.shape[-1])
+            self._exact_grads = cell_layout.scattered(self._exact_grads, flat,
+                                                      self.values.shape)
+        return self._exact_grads
 
     @property
     def test_grads(self):

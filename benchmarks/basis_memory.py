@@ -12,9 +12,10 @@ seconds while the basis is built; the phases are marked by wrapping the
 functions the basis calls (``shape``: the shape tables; ``vci``: the
 correction; ``layout``: the padded per-cell layout).  After the build, the
 basis's arrays are listed with their bytes per pair (a pair: one particle
-reaching one quadrature point), and ``basis.trial`` (the uncorrected trial
-gradients that the non-symmetric VCI tangent reads) is formed and counted
-too.  ``--figure`` writes the trace (resident GB against seconds, phases
+reaching one quadrature point), after ``basis.trial`` (the uncorrected trial
+gradients that the non-symmetric VCI tangent reads) has been formed; the
+peaks and the bytes kept are given after the build and with the trial
+basis.  ``--figure`` writes the trace (resident GB against seconds, phases
 shaded; ``--against FILE`` adds the trace of another build saved with
 ``--json``, e.g. of another version of the package put first on
 ``PYTHONPATH``); ``--json`` the numbers.
@@ -104,6 +105,11 @@ def arrays_of(obj, name, seen, depth=0):
     return []
 
 
+def megabytes(arrays):
+    """MB of a list of ``(name, nbytes)``."""
+    return sum(b for _, b in arrays) / 2**20
+
+
 def build(args, trace):
     import skfem_rkpm.approximation.basis as basis_module
     from skfem_rkpm import RKBasis
@@ -137,8 +143,8 @@ def figure(out, path, against=None):
                    label=None if name in labelled else name)
         labelled.add(name)
     ax.plot(t, rss / 1024, color="k", lw=1.2, label=f"resident memory ({out['label']})")
-    ax.axhline(out["kept_mb"] / 1024 + out["before_mb"] / 1024, color="tab:red", ls="--",
-               lw=1, label="arrays the basis keeps")
+    ax.axhline((out["build_kept_mb"] + out["before_mb"]) / 1024, color="tab:red", ls="--",
+               lw=1, label="arrays the basis keeps after its build")
     if against is not None:  # the trace of another version, its phases not shaded
         t, rss = np.array(against["samples"]).T
         ax.plot(t, rss / 1024, color="0.5", lw=1.2, ls=":",
@@ -176,36 +182,36 @@ def main():
         basis = build(args, trace)
         cpu = time.process_time() - clock
     pairs = npairs(basis)
+    built = dict(peak_mb=resident_mb(), kept_mb=megabytes(arrays_of(basis, "basis", set())))
+    trial = basis.trial
     seen = set()
     kept = arrays_of(basis, "basis", seen)
-    trial = basis.trial
-    trial_only = [(n.replace("basis", "basis.trial", 1), b)
-                  for n, b in arrays_of(trial, "basis", seen)]
+    kept += [(n.replace("basis", "basis.trial", 1), b)
+             for n, b in arrays_of(trial, "basis", seen)]
     out = dict(dim=args.dim, particles=int(basis.nnodes), pairs=pairs,
                cells=int(basis.nelems), nqp=int(basis.X.shape[-1]), nloc=int(
                    basis.element_nodes.shape[0]),
-               cpu_s=cpu, before_mb=before, peak_mb=resident_mb(),
-               after_mb=resident_mb("VmRSS"), kept_mb=sum(b for _, b in kept) / 2**20,
-               trial_mb=sum(b for _, b in trial_only) / 2**20,
+               cpu_s=cpu, before_mb=before, build_peak_mb=built["peak_mb"],
+               build_kept_mb=built["kept_mb"], peak_mb=resident_mb(),
+               after_mb=resident_mb("VmRSS"), kept_mb=megabytes(kept),
                load=os.getloadavg(), samples=trace.samples, phases=trace.phases,
                label=args.label)
     print(f"{out['particles']:,} particles, {pairs:.3e} pairs, {out['cells']:,} cells x "
           f"{out['nqp']} points, {out['nloc']} local functions per cell; build {cpu:.1f} CPU s; "
           f"load {out['load'][0]:.2f}")
-    print(f"resident before {before:.0f} MB, peak {out['peak_mb']:.0f} MB, after the build "
-          f"and trial {out['after_mb']:.0f} MB")
-    print(f"{'array':55s} {'MB':>9s} {'B/pair':>7s}")
-    listed = sorted(kept + trial_only, key=lambda x: -x[1])
-    for name, nbytes in listed:
+    print(f"resident before {before:.0f} MB, after the basis and its trial basis "
+          f"{out['after_mb']:.0f} MB")
+    print(f"arrays of the basis and its trial basis {'MB':>18s} {'B/pair':>7s}")
+    for name, nbytes in sorted(kept, key=lambda x: -x[1]):
         if nbytes >= 0.5 * pairs:
             print(f"{name:55s} {nbytes / 2**20:9.1f} {nbytes / pairs:7.1f}")
-    small = sum(b for _, b in listed if b < 0.5 * pairs)
+    small = sum(b for _, b in kept if b < 0.5 * pairs)
     print(f"{'the rest (each below 0.5 B/pair)':55s} {small / 2**20:9.1f} {small / pairs:7.1f}")
-    for label, mb in (("kept by the basis", out["kept_mb"]),
-                      ("added by basis.trial", out["trial_mb"])):
+    for label, mb in (("kept by the basis after its build", out["build_kept_mb"]),
+                      ("kept by the basis and its trial basis", out["kept_mb"]),
+                      ("peak of the build above the start", out["build_peak_mb"] - before),
+                      ("peak with the trial basis above the start", out["peak_mb"] - before)):
         print(f"{label:55s} {mb:9.1f} {mb * 2**20 / pairs:7.1f}")
-    peak_extra = out["peak_mb"] - before
-    print(f"{'peak above the start':55s} {peak_extra:9.1f} {peak_extra * 2**20 / pairs:7.1f}")
     for name in PHASES:
         spans = [(b, e) for n, b, e in trace.phases if n == name]
         top = max((r for t, r in trace.samples for b, e in spans if b <= t <= e),

@@ -288,3 +288,34 @@ class SolidProblem:
     def cauchy_stress(self, evaluation):
         """Cauchy stress ``σ = τ / det F`` at the quadrature points, (n, 3, 3)."""
         return evaluation.tau / np.linalg.det(evaluation.F)[:, None, None]
+
+    # -- the whole domain, which this problem is (a partitioned solid,
+    #    skfem_rkpm.solvers.partitioned.PartitionedSolid, gathers it from its ranks)
+    partitioned = False
+
+    @property
+    def whole_points(self):
+        """Material points of the whole domain."""
+        return self.state.alpha.shape[0]
+
+    @property
+    def whole_dx(self):
+        """Quadrature weights of the whole domain's points (nelems, nqp)."""
+        return self.assembler.layout.dx
+
+    @property
+    def whole_state(self):
+        """The committed material state of the whole domain."""
+        return self.state
+
+    def gather_points(self, values):
+        """Values at the material points (n, ...) of the whole domain: ``values``."""
+        return values
+
+    def gathered_state(self):
+        """The committed material state of the whole domain."""
+        return self.state
+
+    def restore_state(self, whole):
+        """Take a material state of the whole domain (a checkpoint's)."""
+        self.state = whole

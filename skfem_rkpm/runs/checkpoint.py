@@ -156,7 +156,7 @@ def load_checkpoint(folder, sim, identity):
                               f"with the same scene, --set and --method, or start afresh "
                               f"in another --out")
     N = sim.problem.N
-    nqp = getattr(sim.problem, "whole_points", None) or sim.problem.state.alpha.shape[0]
+    nqp = sim.problem.whole_points
     expected = {"d": (N,), "Cp_inv": (nqp, 3, 3), "alpha": (nqp,)}
     if "rate" in arrays:
         expected["rate"] = (N,)
@@ -165,10 +165,7 @@ def load_checkpoint(folder, sim, identity):
             raise CheckpointError(f"{path}: array {name!r} is missing or has the wrong "
                                   f"shape; start the run afresh (without --resume)")
     state = MaterialState(arrays["Cp_inv"].astype(float), arrays["alpha"].astype(float))
-    if hasattr(sim.problem, "restore_state"):  # partitioned: this rank's points
-        sim.problem.restore_state(state)
-    else:
-        sim.problem.state = state
+    sim.problem.restore_state(state)  # partitioned: this rank's points
     stabilization = sim.problem.stabilization
     if stabilization is not None and stabilization.get_state():
         try:

@@ -106,14 +106,11 @@ def material_fields(problem, evaluation):
     plastic strain (n,) at the material points of the whole domain: a
     partitioned problem (``gather_points``) gathers them from every rank on
     rank 0 (the others get None), and must be called on every rank."""
-    dx, sigma = problem.assembler.layout.dx, problem.cauchy_stress(evaluation)
-    alpha = problem.state.alpha
-    gather = getattr(problem, "gather_points", None)
-    if gather is not None:
-        dx, sigma, alpha = problem.whole_dx, gather(sigma), gather(alpha)
-        if dx is None:  # not rank 0
-            return None
-    return dx, sigma, alpha
+    sigma = problem.gather_points(problem.cauchy_stress(evaluation))
+    alpha = problem.gather_points(problem.state.alpha)
+    if problem.whole_dx is None:  # a partitioned problem, not rank 0
+        return None
+    return problem.whole_dx, sigma, alpha
 
 
 def cell_averages(values, dx):
@@ -131,14 +128,11 @@ def nodal_plastic_strain(problem):
     mesh = problem.basis.mesh
     if getattr(problem.basis, "nodal_quadrature", None) is not None:
         return problem.state.alpha
-    alpha, dx = problem.state.alpha, problem.assembler.layout.dx
-    if hasattr(problem, "gather_points"):  # partitioned
-        if problem.whole_state is None:
-            raise ValueError("the plastic strain of a partitioned problem is known on "
-                             "rank 0 only, after gathered_state() (a run with an output "
-                             "folder)")
-        alpha, dx = problem.whole_state.alpha, problem.whole_dx
-    cells = cell_averages(alpha, dx)
+    if problem.whole_state is None:  # partitioned
+        raise ValueError("the plastic strain of a partitioned problem is known on "
+                         "rank 0 only, after gathered_state() (a run with an output "
+                         "folder)")
+    cells = cell_averages(problem.whole_state.alpha, problem.whole_dx)
     total = np.bincount(mesh.t.ravel(), np.tile(cells, mesh.t.shape[0]),
                         minlength=mesh.nvertices)
     count = np.bincount(mesh.t.ravel(), minlength=mesh.nvertices)
@@ -353,7 +347,7 @@ class FieldWriter:
         disp = nodal_displacements(problem.basis, d)
         u[:, : disp.shape[1]] = disp
         if fields is None:
-            if hasattr(problem, "gather_points"):
+            if problem.partitioned:
                 raise ValueError("the fields of a partitioned problem are gathered from "
                                  "every rank: call material_fields(problem, evaluation) "
                                  "on every rank and pass its result as fields=")

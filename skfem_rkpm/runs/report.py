@@ -73,7 +73,7 @@ def write_comparison(runs, out, settings=(), source=None):
     lines += ["", "![comparison](compare.png)", ""]
     fig, axes = plt.subplots(1, len(runs) + 1, figsize=(5 * (len(runs) + 1), 4.5))
     # a partitioned problem's own state is its rank's: rank 0 keeps the whole one
-    vmax = max(((getattr(runs[m][0].problem, "whole_state", None) or runs[m][0].problem.state)
+    vmax = max(((runs[m][0].problem.whole_state or runs[m][0].problem.state)
                 .alpha.max() for m in runs), default=None)
     for ax, m in zip(axes, runs):
         sim, result = runs[m]

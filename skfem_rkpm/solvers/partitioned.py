@@ -239,6 +239,7 @@ class PartitionedSolid:
 
     #: a partitioned solid has no SCNI stabilization (a cell scheme)
     stabilization = None
+    partitioned = True
 
     def __init__(self, problem, reduction, rank):
         self.problem, self.reduction, self.rank = problem, reduction, int(rank)

@@ -69,3 +69,31 @@ def test_iterative_vci_solve_matches_the_factorization(monkeypatch, integration,
     sums = np.stack([np.bincount(rows, iterative.test_grads[k], minlength=nq)
                      for k in range(dim)])
     assert np.abs(sums).max() < 1e-12 * np.abs(iterative.test_grads).max()
+
+
+def test_a_stalled_iterative_vci_solve_falls_back_to_the_factorization(monkeypatch):
+    """Where AMG + CG do not reach the tolerance (order 2 above 20,000
+    unknowns did not: 1e-3 after 500 iterations), the correction system is
+    factored instead of the build failing: the corrections are those of the
+    factorization."""
+    pytest.importorskip("pyamg")
+    import skfem_rkpm.approximation.integration as integration_module
+
+    mesh = rectangle(2.0, 1.0, 24, 12, kind="quad", perturb=0.2, seed=5)
+
+    def build():
+        return RKBasis(mesh, vector=True, support=3.0, order=2, intorder=4)
+
+    direct = build()
+    stalled = []
+    amg_cg = integration_module._amg_cg
+
+    def one_iteration(M, b, rtol, maxiter):
+        stalled.append(amg_cg(M, b, rtol, 1))
+        return stalled[-1]
+
+    monkeypatch.setattr(integration_module, "DIRECT_MAX_UNKNOWNS", 0)
+    monkeypatch.setattr(integration_module, "_amg_cg", one_iteration)
+    fallen_back = build()
+    assert stalled == [None]  # one iteration does not reach 1e-13
+    np.testing.assert_array_equal(fallen_back.test_grads, direct.test_grads)

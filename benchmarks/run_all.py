@@ -63,6 +63,7 @@ SUITE = {
     "vci_symmetry": ([], ["--levels", "4", "8", "--supports", "2", "--repeat", "1"],
                      (6, 0.5)),
     "basis_build": ([], ["--sizes", "1e4", "17227", "--repeat", "1"], (3, 0.5)),
+    "basis_memory": (["--particles", "1e5"], ["--particles", "17227"], (0.5, 0.1)),
     "interpolating_basis": ([], ["--repeat", "1"], (0.5, 0.3)),
     "saddle_point": ([], ["--scene", "billet_3d", "--repeat", "1"], (1, 0.2)),
 }

@@ -239,3 +239,35 @@ def test_a_basis_keeps_no_array_per_pair_but_its_slots():
     np.testing.assert_array_equal(b.table.grads, exact)
     np.testing.assert_array_equal(trial.table.grads, exact)
     np.testing.assert_array_equal(trial.test_grads, exact)
+
+
+def test_the_tables_of_a_cell_selection_are_the_rows_of_the_whole_table():
+    """``with_elements`` gathers the pairs of its cells only; they are the
+    whole table's rows of those cells, before and after the trial basis lays
+    out the exact gradients."""
+    from skfem_rkpm.meshes import rectangle
+
+    b = RKBasis(rectangle(1.0, 0.7, 9, 6, kind="tri", perturb=0.2, seed=2), vector=True,
+                support=2.5, intorder=3)
+    cells = np.array([3, 17, 40, 41, 100])
+    nqp = b.X.shape[-1]
+    rows = (cells[:, None] * nqp + np.arange(nqp)).ravel()
+    whole = b.table
+    pairs = np.concatenate([np.arange(whole.indptr[r], whole.indptr[r + 1]) for r in rows])
+    test = b.test_grads[:, pairs]
+    for _ in range(2):
+        sub = b.with_elements(cells)
+        np.testing.assert_array_equal(sub.table.indices, whole.indices[pairs])
+        np.testing.assert_array_equal(sub.table.values, whole.values[pairs])
+        np.testing.assert_array_equal(sub.table.grads, whole.grads[:, pairs])
+        np.testing.assert_array_equal(sub.test_grads, test)
+        b.trial  # the exact gradients laid out: the same numbers
+
+
+def test_an_order_0_basis_has_nothing_to_correct():
+    """Order 0 reproduces constants only: VCI has nothing to correct, and the
+    trial basis is the basis itself."""
+    from skfem_rkpm.meshes import rectangle
+
+    b = RKBasis(rectangle(1.0, 1.0, 6, 6), order=0, support=2.5)
+    assert b.trial is b and b._exact_grads is None

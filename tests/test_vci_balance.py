@@ -42,8 +42,7 @@ def test_internal_force_of_nonuniform_stress_is_balanced(kind, order):
     np.testing.assert_array_less(np.abs(f.sum(0)), 1e-12 * magnitude)
 
 
-@pytest.mark.parametrize("integration, order", [("vci", 1), ("vci", 2),
-                                                ("vci_symmetric", 1)])
+@pytest.mark.parametrize("integration, order", [("vci", 1), ("vci_symmetric", 1)])
 def test_iterative_vci_solve_matches_the_factorization(monkeypatch, integration, order):
     """AMG-preconditioned CG (used above DIRECT_MAX_UNKNOWNS) gives the
     corrections of the sparse LU factorization, and keeps their balance."""
@@ -72,17 +71,18 @@ def test_iterative_vci_solve_matches_the_factorization(monkeypatch, integration,
 
 
 def test_a_stalled_iterative_vci_solve_falls_back_to_the_factorization(monkeypatch):
-    """Where AMG + CG do not reach the tolerance (order 2 above 20,000
-    unknowns did not: 1e-3 after 500 iterations), the correction system is
-    factored instead of the build failing: the corrections are those of the
-    factorization."""
+    """Where AMG + CG do not reach the tolerance (as on order 2 above 20,000
+    unknowns: 1e-3 after 500 iterations, so order 2 is always factored), the
+    correction system is factored instead of the build failing: the
+    corrections are those of the factorization."""
     pytest.importorskip("pyamg")
     import skfem_rkpm.approximation.integration as integration_module
 
     mesh = rectangle(2.0, 1.0, 24, 12, kind="quad", perturb=0.2, seed=5)
 
     def build():
-        return RKBasis(mesh, vector=True, support=3.0, order=2, intorder=4)
+        return RKBasis(mesh, vector=True, support=2.0, intorder=2,
+                       integration="vci_symmetric")
 
     direct = build()
     stalled = []
@@ -96,4 +96,7 @@ def test_a_stalled_iterative_vci_solve_falls_back_to_the_factorization(monkeypat
     monkeypatch.setattr(integration_module, "_amg_cg", one_iteration)
     fallen_back = build()
     assert stalled == [None]  # one iteration does not reach 1e-13
-    np.testing.assert_array_equal(fallen_back.test_grads, direct.test_grads)
+    # the same factorization, after pyamg has set up on the matrix: round-off
+    # (measured 3.6e-15 of gradients of size 1)
+    np.testing.assert_allclose(fallen_back.test_grads, direct.test_grads, rtol=0,
+                               atol=1e-13 * np.abs(direct.test_grads).max())

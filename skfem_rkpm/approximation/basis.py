@@ -303,11 +303,14 @@ class RKBasis(CellViews, RKBase):
             nodes.shape[0] if vector else 1), format="csr")
         del ntable
         if integration in ("vci", "vci_symmetric"):
-            table.test_grads = vci_gradients(
+            corrected = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE)
+            if corrected is not table.grads:  # order 0: nothing to correct
+                table.test_grads = corrected
+            del corrected
         del btable
         table.kernel = None  # only VCI reads it: 8 bytes per pair
         self._setup(mesh, geometry, table, nodes, vector, release=True)

@@ -35,7 +35,6 @@ from skfem.element import (ElementHex1, ElementLineP1, ElementQuad1, ElementTetP
 from skfem.mesh import MeshHex1, MeshLine1, MeshQuad1, MeshTet1, MeshTri1
 from skfem.refdom import RefHex, RefLine, RefQuad, RefTet, RefTri
 
-from .shape import ShapeTable
 
 __all__ = ["BasisIdiomError", "CoefficientsNotNodalError", "CellViews", "FacetViews", "lagrange_element",
            "linear_mesh_class"]
@@ -76,20 +75,6 @@ def lagrange_element(mesh):
 def linear_mesh_class(mesh):
     """The linear mesh class of the cells of ``mesh`` (MeshTri1 for MeshTri2)."""
     return _linear(mesh)[1]
-
-
-def _select_rows(table, rows):
-    """The rows ``rows`` (evaluation points) of a shape table."""
-    start, stop = table.indptr[rows], table.indptr[rows + 1]
-    count = stop - start
-    indptr = np.concatenate([[0], np.cumsum(count)])
-    pick = np.repeat(start - indptr[:-1], count) + np.arange(indptr[-1])
-
-    def picked(a):
-        return None if a is None else a[..., pick]
-
-    return ShapeTable(indptr, table.indices[pick], table.values[pick], picked(table.grads),
-                      table.nnodes, picked(table.kernel), picked(table.test_grads))
 
 
 class _DofIdioms:
@@ -208,7 +193,7 @@ class CellViews(_DofIdioms):
                              f"of the mesh, at least one; got {elements!r}")
         nqp = whole.X.shape[-1]
         rows = (tind[:, None] * nqp + np.arange(nqp)).ravel()
-        table = _select_rows(whole._pair_table(test=True), rows)
+        table = whole._pair_table(test=True, rows=rows)
         geometry = CellBasis(self.mesh, whole.geometry.elem, mapping=whole.mapping,
                              quadrature=whole.quadrature, elements=tind)
         sub = copy.copy(whole)

@@ -77,7 +77,7 @@ def padded(table, nelems, nqp, cells=None, release=False):
     element_nodes = np.repeat(indices[indptr[:-1]][None, :], nloc, axis=0)
     element_nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
                   np.repeat(np.arange(nelems), count)] = indices
-    _, flat = pair_entries(table.indptr, (indptr, indices, slot), nelems, nqp)
+    flat = pair_entries(table.indptr, (indptr, indices, slot), nelems, nqp)[-1]
     if release:
         table.indices = None
     test = "grads" if table.test_grads is None else "test_grads"
@@ -106,34 +106,46 @@ def scattered(pairs, flat, shape):
     return out
 
 
-def pair_entries(indptr, cells, nelems, nqp):
-    """Where each pair of a table sits in its padded layout: its cell and its
-    entry of the flattened (nloc, nelems, nqp) arrays, ``slot nelems nqp +
-    q`` for the pair of point ``q = cell nqp + qp`` in slot ``slot`` of its
-    cell.  ``indptr``: the pairs of each quadrature point in that table;
-    ``cells``: its :func:`cell_particles`."""
-    rows = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
-    slot = cells[2]
-    flat = slot.astype(np.int64)
+def pair_entries(indptr, cells, nelems, nqp, rows=None):
+    """Where the pairs of the points ``rows`` of a table (default: all, in
+    order) sit in its padded layout.
+
+    ``indptr``: the pairs of each quadrature point in that table; ``cells``:
+    its :func:`cell_particles`.  Returns the CSR ``indptr`` of the selected
+    points' pairs, their positions among the table's pairs (``pick``: a
+    slice for all), their cells, and their entries ``slot nelems nqp + q``
+    of the flattened (nloc, nelems, nqp) arrays (``q = cell nqp + qp``).
+    """
+    if rows is None:
+        sub, pick = indptr, slice(None)
+        point = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    else:
+        start = indptr[rows]
+        count = indptr[rows + 1] - start
+        sub = np.concatenate([[0], np.cumsum(count)])
+        pick = np.repeat(start - sub[:-1], count) + np.arange(sub[-1])
+        point = np.repeat(rows, count)
+    flat = cells[2][pick].astype(np.int64)
     flat *= nelems * nqp
-    flat += rows
-    rows //= nqp
-    return rows, flat
+    flat += point
+    point //= nqp
+    return sub, pick, point, flat
 
 
-def pair_table(indptr, nnodes, cells, element_nodes, values, grads, test_grads=None):
+def pair_table(indptr, nnodes, cells, element_nodes, values, grads, test_grads=None,
+               rows=None):
     """The pair (CSR) table of a padded layout, the pairs in the order of the
     table it was laid out from: the inverse of :func:`padded`.
 
-    ``indptr`` and ``cells`` as for :func:`pair_entries`; ``values``
-    (nloc, nelems, nqp), ``grads`` and ``test_grads`` (dim, nloc, nelems,
-    nqp) or None.
+    ``indptr``, ``cells`` and ``rows`` (the points wanted, default all) as
+    for :func:`pair_entries`; ``values`` (nloc, nelems, nqp), ``grads`` and
+    ``test_grads`` (dim, nloc, nelems, nqp) or None.
     """
     _, nelems, nqp = values.shape
-    cell, flat = pair_entries(indptr, cells, nelems, nqp)
-    indices = element_nodes[cells[2], cell]
+    sub, pick, cell, flat = pair_entries(indptr, cells, nelems, nqp, rows)
+    indices = element_nodes[cells[2][pick], cell]
     del cell
-    return ShapeTable(indptr, indices, values.reshape(-1)[flat],
+    return ShapeTable(sub, indices, values.reshape(-1)[flat],
                       None if grads is None else gathered(grads, flat), nnodes,
                       test_grads=None if test_grads is None else gathered(test_grads, flat))
 

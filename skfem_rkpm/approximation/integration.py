@@ -324,7 +324,10 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius, reduction=WHO
             nnodes, m, dim)
     _, pinned = np.unique(body[::m], return_index=True)  # first particle of each body
     block = np.arange(n).reshape(nnodes, m)
-    return _pinned_spd_solve(M, b, block[pinned].ravel()).reshape(nnodes, m, dim)
+    # factored at every size: AMG + CG stall on the blocks of order 2 (17k
+    # particles: 1e-3 after 500 iterations, 90 of the build's 129 CPU s)
+    return _pinned_spd_solve(M, b, block[pinned].ravel(), iterative=False).reshape(
+        nnodes, m, dim)
 
 
 #: relative residual (2-norm, per right-hand side) at which the iterative VCI
@@ -353,17 +356,15 @@ DIRECT_MAX_UNKNOWNS = 20_000
 #: at 9.8e3 (factored against CG, load 3-5)
 LAPLACIAN_DIRECT_MAX_UNKNOWNS = 5_000
 
-def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500):
+def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500, iterative=True):
     """Solve ``M x = b`` with ``x = 0`` at the ``pinned`` unknowns (their
     equations dropped), ``M`` symmetric and positive definite on the rest.
 
-    Above :data:`DIRECT_MAX_UNKNOWNS` unknowns and with pyamg installed
-    (``pip install skfem-rkpm[amg]``): conjugate gradients preconditioned by
-    smoothed-aggregation AMG (:func:`_amg_cg`); time and memory grow like
-    the nonzeros of ``M``.  Otherwise, or where those do not reach ``rtol``
-    in ``maxiter`` iterations (measured: the order-2 system of 17k
-    particles, 51,681 unknowns, stalls at a relative residual of 1e-3), a
-    sparse LU factorization (SuperLU) with one step of refinement, whose
+    ``iterative``, above :data:`DIRECT_MAX_UNKNOWNS` unknowns and with pyamg
+    installed (``pip install skfem-rkpm[amg]``): conjugate gradients
+    preconditioned by smoothed-aggregation AMG (:func:`_amg_cg`); time and
+    memory grow like the nonzeros of ``M``.  Otherwise, or where those do
+    not reach ``rtol`` in ``maxiter`` iterations, a sparse LU factorization (SuperLU) with one step of refinement, whose
     fill grows faster than the particles (it runs out of 20 GB near 7e5
     particles in 2D).  Both agree to about ``rtol`` times the condition
     number of ``M`` (docs/performance.md, "Building an RK basis").
@@ -378,7 +379,7 @@ def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500):
     Mf.eliminate_zeros()
     Mf = Mf + sp.diags(1.0 - free, format="csr")
     b = b * free[:, None]
-    if n > DIRECT_MAX_UNKNOWNS:
+    if iterative and n > DIRECT_MAX_UNKNOWNS:
         x = _amg_cg(Mf, b, rtol, maxiter)
         if x is not None:
             return x

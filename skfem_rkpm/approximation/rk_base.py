@@ -62,27 +62,28 @@ class RKBase(AbstractBasis):
         call (the basis keeps one copy of each value: the per-cell layout)."""
         return self._pair_table()
 
-    def _pair_table(self, test=False):
-        """:attr:`table`, with its ``test_grads`` if ``test`` and the basis
-        has corrected ones (VCI)."""
+    def _pair_table(self, test=False, rows=None):
+        """:attr:`table` (of the quadrature points ``rows`` only, if given),
+        with its ``test_grads`` if ``test`` and the basis has corrected ones
+        (VCI)."""
         exact = self._exact_grads
-        if exact is None or exact.ndim == 4:
-            return cell_layout.pair_table(
-                self._pairs, self.nodes.shape[1], self._cells, self.element_nodes,
-                self.values, self.grads if exact is None else exact,
-                self.grads if test and exact is not None else None)
-        table = cell_layout.pair_table(self._pairs, self.nodes.shape[1], self._cells,
-                                       self.element_nodes, self.values, None,
-                                       self.grads if test else None)
-        table.grads = exact  # still pairs
+        laid_out = exact is None or exact.ndim == 4
+        table = cell_layout.pair_table(
+            self._pairs, self.nodes.shape[1], self._cells, self.element_nodes, self.values,
+            (self.grads if exact is None else exact) if laid_out else None,
+            self.grads if test and exact is not None else None, rows)
+        if not laid_out:  # the exact gradients, still pairs
+            pick = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
+                                            self.X.shape[-1], rows)[1]
+            table.grads = exact[:, pick]
         return table
 
     def _exact_layout(self):
         """The exact gradients of a VCI basis in the padded layout (dim, nloc,
         nelems, nqp), laid out from their pairs at the first call."""
         if self._exact_grads.ndim == 2:
-            _, flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
-                                               self.X.shape[-1])
+            flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
+                                            self.X.shape[-1])[-1]
             self._exact_grads = cell_layout.scattered(self._exact_grads, flat,
                                                       self.values.shape)
         return self._exact_grads
@@ -94,8 +95,8 @@ class RKBase(AbstractBasis):
         the exact gradients, gathered from the padded arrays."""
         if self.grads is None:
             return None
-        _, flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
-                                           self.X.shape[-1])
+        flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
+                                        self.X.shape[-1])[-1]
         return cell_layout.gathered(self.grads, flat)
 
     # -- dof numbering -----------------------------------------------------

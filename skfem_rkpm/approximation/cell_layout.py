@@ -58,11 +58,10 @@ def cell_particles(table, nelems, nqp):
 def padded(table, nelems, nqp, cells=None, release=False):
     """Per-cell padded node lists and values from a pair table.
 
-    ``cells``:
-    :func:`cell_particles` of the table if already known.  With ``release``
-    the table's pair arrays are dropped (set to None) as soon as they are
-    laid out, so that the pair and the padded copy of one array at most
-    are held together.
+    ``cells``: :func:`cell_particles` of the table if already known.  With
+    ``release`` the table's pair arrays are dropped (set to None) as soon as
+    they are laid out, so that the pair and the padded copy of one array at
+    most are held together.
 
     Returns ``element_nodes`` (nloc, nelems), ``values`` (nloc, nelems,
     nqp) and ``grads`` (dim, nloc, nelems, nqp) of the test functions

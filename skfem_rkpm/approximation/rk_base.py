@@ -30,9 +30,8 @@ class RKBase(AbstractBasis):
         The basis keeps the padded arrays (and, with VCI, the exact gradients
         as pairs until :meth:`_exact_layout` lays them out for the trial
         basis); :attr:`table` and :attr:`test_grads` gather the pair layout
-        from them when asked.
-        ``release``: the table's pair arrays may be dropped while they are
-        laid out (the caller keeps no use for them).
+        from them when asked.  ``release``: the table's pair arrays may be
+        dropped while they are laid out (the caller keeps no use for them).
         """
         self.mesh = mesh
         self.geometry = geometry
@@ -73,19 +72,15 @@ class RKBase(AbstractBasis):
             (self.grads if exact is None else exact) if laid_out else None,
             self.grads if test and exact is not None else None, rows)
         if not laid_out:  # the exact gradients, still pairs
-            pick = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
-                                            self.X.shape[-1], rows)[1]
-            table.grads = exact[:, pick]
+            table.grads = exact[:, self._entries(rows)[1]]
         return table
 
     def _exact_layout(self):
         """The exact gradients of a VCI basis in the padded layout (dim, nloc,
         nelems, nqp), laid out from their pairs at the first call."""
         if self._exact_grads.ndim == 2:
-            flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
-                                            self.X.shape[-1])[-1]
-            self._exact_grads = cell_layout.scattered(self._exact_grads, flat,
-                                                      self.values.shape)
+            self._exact_grads = cell_layout.scattered(self._exact_grads,
+                                                      self._entries()[-1], self.values.shape)
         return self._exact_grads
 
     @property
@@ -95,9 +90,13 @@ class RKBase(AbstractBasis):
         the exact gradients, gathered from the padded arrays."""
         if self.grads is None:
             return None
-        flat = cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
-                                        self.X.shape[-1])[-1]
-        return cell_layout.gathered(self.grads, flat)
+        return cell_layout.gathered(self.grads, self._entries()[-1])
+
+    def _entries(self, rows=None):
+        """:func:`.cell_layout.pair_entries` of the pairs of the quadrature
+        points ``rows`` (default all)."""
+        return cell_layout.pair_entries(self._pairs, self._cells, self.nelems,
+                                        self.X.shape[-1], rows)
 
     # -- dof numbering -----------------------------------------------------
     @property

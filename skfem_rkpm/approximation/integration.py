@@ -364,9 +364,9 @@ def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500, iterative=True):
     installed (``pip install skfem-rkpm[amg]``): conjugate gradients
     preconditioned by smoothed-aggregation AMG (:func:`_amg_cg`); time and
     memory grow like the nonzeros of ``M``.  Otherwise, or where those do
-    not reach ``rtol`` in ``maxiter`` iterations, a sparse LU factorization (SuperLU) with one step of refinement, whose
-    fill grows faster than the particles (it runs out of 20 GB near 7e5
-    particles in 2D).  Both agree to about ``rtol`` times the condition
+    not reach ``rtol`` in ``maxiter`` iterations, a sparse LU factorization
+    (SuperLU) with one step of refinement, whose fill grows faster than the
+    particles (it runs out of 20 GB near 7e5 particles in 2D).  Both agree to about ``rtol`` times the condition
     number of ``M`` (docs/performance.md, "Building an RK basis").
     """
     n = M.shape[0]

@@ -5,17 +5,10 @@ works on, every (evaluation point, particle) pair with the point inside the
 particle's support.  The number of pairs is about the number of points
 (cell and boundary quadrature points, particles) times the mean number of
 supports covering a point, ``Σ_I |supp_I ∩ B| / |Ω|`` (``B`` the bounding
-box of the mesh: supports at the boundary reach out of the body); the peak memory per pair
-was measured with ``tracemalloc`` on the ring (2D, box supports, 1.1 and
-17 million pairs): 197 bytes at order 1 (m = 3 monomials) and 373 at
-order 2 (m = 6), i.e. ``20 + 60 m`` bytes (radial supports: the same per
-pair).  Remeasured since the basis keeps its shape functions once (peak
-resident memory of the build and ``basis.trial`` over the estimated pairs,
-2D rectangle of 17k particles, 16 Gauss points per cell): order 1, 105
-(radial) and 94 (box) bytes; order 2, 425 and 382 bytes, where the
-factorization of the VCI system takes most of it.  The estimate stays
-``20 + 60 m``: twice the need at order 1, 10 % under it at order 2 with
-radial supports.  :func:`check_rk_memory` refuses, before anything is built, a basis
+box of the mesh: supports at the boundary reach out of the body).  The
+bytes per estimated pair are :data:`BYTES_PER_PAIR`, measured, plus a
+quarter; ``20 + 60 m`` (``m`` monomials) where nothing was measured.
+:func:`check_rk_memory` refuses, before anything is built, a basis
 whose estimate exceeds the memory available (``MemAvailable`` of
 ``/proc/meminfo``, a cgroup limit, ``ulimit -v``), with the estimate and
 what to change.
@@ -31,6 +24,16 @@ import numpy as np
 __all__ = ["ProblemTooLarge", "estimate_rk_bytes", "available_bytes", "check_rk_memory"]
 
 GiB = 2.0 ** 30
+
+#: peak resident memory of the build and ``basis.trial`` over the estimated
+#: pairs, by (dimension, order), the larger of radial and box supports
+#: (2026-12-02; 2D: rectangle of 17k particles, 16 Gauss points per cell,
+#: radial 105 and box 94 at order 1, 425 and 382 at order 2, where the
+#: factorization of the order-2 VCI system takes most of it; 3D: hexahedra,
+#: 24³ and 20³ cells, 27 points per cell, radial 160 and box 105)
+BYTES_PER_PAIR = {(2, 1): 105, (2, 2): 425, (3, 1): 160}
+#: the margin on :data:`BYTES_PER_PAIR` for what the measurements did not see
+MARGIN = 1.25
 
 
 class ProblemTooLarge(ValueError):
@@ -76,8 +79,9 @@ def estimate_rk_bytes(mesh, radius, order, support_shape, intorder):
     measure = measure * np.prod(np.clip(inside, 0, 1), axis=0)
     covering = min(float(measure.sum()) / max(_volume(mesh), 1e-300), mesh.nvertices)
     pairs = points * covering
-    monomials = comb(order + dim, dim)
-    return pairs, pairs * (20 + 60 * monomials), points
+    per_pair = BYTES_PER_PAIR.get((dim, order))
+    per_pair = 20 + 60 * comb(order + dim, dim) if per_pair is None else MARGIN * per_pair
+    return pairs, pairs * per_pair, points
 
 
 def available_bytes():

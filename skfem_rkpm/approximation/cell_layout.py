@@ -131,19 +131,16 @@ def pair_entries(indptr, cells, nelems, nqp, rows=None):
     return sub, pick, point, flat
 
 
-def pair_table(indptr, nnodes, cells, element_nodes, values, grads, test_grads=None,
-               rows=None):
+def pair_table(entries, nnodes, cells, element_nodes, values, grads, test_grads=None):
     """The pair (CSR) table of a padded layout, the pairs in the order of the
     table it was laid out from: the inverse of :func:`padded`.
 
-    ``indptr``, ``cells`` and ``rows`` (the points wanted, default all) as
-    for :func:`pair_entries`; ``values`` (nloc, nelems, nqp), ``grads`` and
-    ``test_grads`` (dim, nloc, nelems, nqp) or None.
+    ``entries``: :func:`pair_entries` of the points wanted, ``cells`` as
+    there; ``values`` (nloc, nelems, nqp), ``grads`` and ``test_grads``
+    (dim, nloc, nelems, nqp) or None.
     """
-    _, nelems, nqp = values.shape
-    sub, pick, cell, flat = pair_entries(indptr, cells, nelems, nqp, rows)
+    sub, pick, cell, flat = entries
     indices = element_nodes[cells[2][pick], cell]
-    del cell
     return ShapeTable(sub, indices, values.reshape(-1)[flat],
                       None if grads is None else gathered(grads, flat), nnodes,
                       test_grads=None if test_grads is None else gathered(test_grads, flat))

@@ -356,7 +356,7 @@ DIRECT_MAX_UNKNOWNS = 20_000
 #: at 9.8e3 (factored against CG, load 3-5)
 LAPLACIAN_DIRECT_MAX_UNKNOWNS = 5_000
 
-def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500, iterative=True):
+def _pinned_spd_solve(M, b, pinned, rtol=RTOL, iterative=True):
     """Solve ``M x = b`` with ``x = 0`` at the ``pinned`` unknowns (their
     equations dropped), ``M`` symmetric and positive definite on the rest.
 
@@ -364,10 +364,11 @@ def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500, iterative=True):
     installed (``pip install skfem-rkpm[amg]``): conjugate gradients
     preconditioned by smoothed-aggregation AMG (:func:`_amg_cg`); time and
     memory grow like the nonzeros of ``M``.  Otherwise, or where those do
-    not reach ``rtol`` in ``maxiter`` iterations, a sparse LU factorization
+    not reach ``rtol`` in 500 iterations, a sparse LU factorization
     (SuperLU) with one step of refinement, whose fill grows faster than the
-    particles (it runs out of 20 GB near 7e5 particles in 2D).  Both agree to about ``rtol`` times the condition
-    number of ``M`` (docs/performance.md, "Building an RK basis").
+    particles (it runs out of 20 GB near 7e5 particles in 2D).  Both agree
+    to about ``rtol`` times the condition number of ``M``
+    (docs/performance.md, "Building an RK basis").
     """
     n = M.shape[0]
     free = np.ones(n)
@@ -380,7 +381,7 @@ def _pinned_spd_solve(M, b, pinned, rtol=RTOL, maxiter=500, iterative=True):
     Mf = Mf + sp.diags(1.0 - free, format="csr")
     b = b * free[:, None]
     if iterative and n > DIRECT_MAX_UNKNOWNS:
-        x = _amg_cg(Mf, b, rtol, maxiter)
+        x = _amg_cg(Mf, b, rtol, maxiter=500)
         if x is not None:
             return x
     lu = splu(Mf.tocsc(), permc_spec="MMD_AT_PLUS_A")

@@ -65,14 +65,14 @@ class RKBase(AbstractBasis):
         """:attr:`table` (of the quadrature points ``rows`` only, if given),
         with its ``test_grads`` if ``test`` and the basis has corrected ones
         (VCI)."""
-        exact = self._exact_grads
+        entries, exact = self._entries(rows), self._exact_grads
         laid_out = exact is None or exact.ndim == 4
         table = cell_layout.pair_table(
-            self._pairs, self.nodes.shape[1], self._cells, self.element_nodes, self.values,
+            entries, self.nodes.shape[1], self._cells, self.element_nodes, self.values,
             (self.grads if exact is None else exact) if laid_out else None,
-            self.grads if test and exact is not None else None, rows)
+            self.grads if test and exact is not None else None)
         if not laid_out:  # the exact gradients, still pairs
-            table.grads = exact[:, self._entries(rows)[1]]
+            table.grads = exact[:, entries[1]]
         return table
 
     def _exact_layout(self):

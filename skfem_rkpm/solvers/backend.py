@@ -112,12 +112,20 @@ class Solver:
         if A.shape[0] != A.shape[1]:
             raise ValueError(f"the matrix must be square, it is {A.shape[0]} x {A.shape[1]}")
         if not self._same_pattern(A):
-            clock = time.perf_counter()
-            self._analyze(A)
-            self.stats["analyses"] += 1
-            self.stats["analyze_seconds"] += time.perf_counter() - clock
-            self._pattern = (A.shape, A.indptr.copy(), A.indices.copy())
+            self._analyze_timed(A)
         return self._factor_timed(A)
+
+    def _analyze_timed(self, A, analyze=None):
+        """``_analyze(A)`` (or ``analyze()``), counted in ``stats``; ``A``'s
+        pattern is the one kept."""
+        clock = time.perf_counter()
+        if analyze is None:
+            self._analyze(A)
+        else:
+            analyze()
+        self.stats["analyses"] += 1
+        self.stats["analyze_seconds"] += time.perf_counter() - clock
+        self._pattern = (A.shape, A.indptr.copy(), A.indices.copy())
 
     def _factor_timed(self, A):
         """``_factor(A)``, kept as the factored matrix and counted in ``stats``."""

@@ -33,7 +33,6 @@ What rank 0 writes (the material state of a checkpoint, the fields of an
 output step) is gathered on rank 0 only.
 """
 
-import time
 
 import numpy as np
 import scipy.sparse as sp
@@ -364,12 +363,8 @@ class DistributedLU(PETScLU):
         owner = self._owners(n, (n - m) // len(self.parts.particles), constraint_rows)
         changed = not (self._same_pattern(A.local) and np.array_equal(owner, self._owner))
         if self.reduction.sum(np.array([float(changed)]))[0] > 0:
-            clock = time.perf_counter()
-            self._analyze_shares(owner, A.local.tocoo())
+            self._analyze_timed(A.local, lambda: self._analyze_shares(owner, A.local.tocoo()))
             self._owner = owner
-            self._pattern = (A.local.shape, A.local.indptr.copy(), A.local.indices.copy())
-            self.stats["analyses"] += 1
-            self.stats["analyze_seconds"] += time.perf_counter() - clock
         return self._factor_timed(A)
 
     def _set_values(self, A):

@@ -1,6 +1,6 @@
 """Time and peak memory of building an RK basis, by phase, from 1e4 to 1e6 particles.
 
-Setup (the 17k-particle case of docs/performance.md, "Building an RK basis"):
+Setup (the 17k-particle case of docs/benchmarks/basis_build.md):
 a rectangle of 160 x 106 cells (17,227 particles) scaled to the requested
 number of particles at the same aspect ratio, ``RKBasis(mesh, vector=True,
 support=3.0, intorder=7)``: order 1, cubic kernel, radial supports,

@@ -32,7 +32,7 @@ MemoryError instead of exhausting the machine; a failing or timed-out case
 is reported and the larger sizes of that basis are skipped.  One core: the
 thread variables are set before numpy is imported.
 
-Measured (docs/performance.md, "Newton iteration cost"): the sparse solve is
+Measured (docs/benchmarks/scaling.md, "Newton iteration cost"): the sparse solve is
 83-98 % of an RK iteration from 1e4 nodes on; at 1e5 nodes the RK
 factorization needs 12-15 GB and about 9 minutes, so with the default cap
 the RK cases stop there with a reported failure.

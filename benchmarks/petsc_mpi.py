@@ -33,7 +33,7 @@ Run:  python benchmarks/petsc_mpi.py --sizes 50      (~2 minutes)
                                                       over 20 minutes, 6 GB)
       SKFEM_RKPM_MPIEXEC=/path/to/mpiexec python benchmarks/petsc_mpi.py
 
-Needs petsc4py built with MPI (docs/performance.md, "PETSc and MPI").
+Needs petsc4py built with MPI (docs/benchmarks/partitioned.md, "PETSc and MPI").
 """
 
 import os

@@ -3,7 +3,7 @@
 Every script in ``benchmarks/`` runs in a process of its own (one core:
 ``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS`` are
 1, ``MPLBACKEND=Agg``), with the settings the results in
-``docs/performance.md`` were measured with, or with smaller sizes under
+``docs/benchmarks/`` were measured with, or with smaller sizes under
 ``--quick``.  The Markdown tables each script prints are saved as
 ``<out>/<script>.md``, headed by the command, the date, the commit, the
 load average before and after, and the CPU and wall seconds of the run;
@@ -18,10 +18,11 @@ Run (from the repository root):
     python benchmarks/run_all.py --only shape_rate plastic_trade
     python benchmarks/run_all.py --list       # the scripts and their arguments
 
-Default output: ``docs/benchmarks/`` (full) and ``docs/benchmarks/quick/``
-(``--quick``).  A script that fails is reported (its last error lines are
-saved with its output) and the others still run; the exit code is 1 if any
-failed.
+Default output: ``docs/benchmarks/runs/`` (full) and ``docs/benchmarks/quick/``
+(``--quick``); the pages of ``docs/benchmarks/`` itself are written by hand
+and never overwritten.  A script that fails is reported (its last error
+lines are saved with its output) and the others still run; the exit code is
+1 if any failed.
 """
 
 import argparse
@@ -147,7 +148,7 @@ def main():
     parser.add_argument("--only", nargs="+", metavar="NAME",
                         help="run these scripts only (names as in --list)")
     parser.add_argument("--out", type=Path, default=None,
-                        help="folder of the tables (default docs/benchmarks, with "
+                        help="folder of the tables (default docs/benchmarks/runs, with "
                              "--quick docs/benchmarks/quick)")
     parser.add_argument("--figures", type=Path, default=None,
                         help="folder of the figures (default docs/figures, with --quick "
@@ -157,7 +158,7 @@ def main():
     parser.add_argument("--list", action="store_true", help="print the suite and exit")
     args = parser.parse_args()
 
-    out = args.out or ROOT / "docs" / "benchmarks" / ("quick" if args.quick else "")
+    out = args.out or ROOT / "docs" / "benchmarks" / ("quick" if args.quick else "runs")
     out = out.resolve()
     figures = (args.figures or (out if args.quick else ROOT / "docs" / "figures")).resolve()
     suite = discover()
@@ -192,7 +193,7 @@ def main():
             (out / f"{name}.md").write_text(
                 f"# {name}\n\nCommand: `{shown}`  \nSkipped on "
                 f"{datetime.datetime.now():%Y-%m-%d %H:%M}: {', '.join(missing)} not "
-                "installed (see docs/performance.md).\n")
+                "installed (see docs/benchmarks/partitioned.md).\n")
             summaries.append(dict(name=name, command=shown, ok=None, cpu=0.0, wall=0.0,
                                   load=load_average()))
             continue

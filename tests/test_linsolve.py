@@ -171,7 +171,7 @@ def test_auto_takes_pardiso_for_the_largest_systems(spd, symmetric):
 @pytest.mark.parametrize("spd, symmetric", [(True, True), (False, False)])
 def test_auto_never_takes_umfpack(spd, symmetric):
     """UMFPACK only by name: measured slower than SuperLU with nested
-    dissection on large RK tangents (docs/performance.md)."""
+    dissection on large RK tangents (docs/benchmarks/linear_solvers.md)."""
     auto = make_solver("auto")
     auto.installed = ["dense", "superlu", "umfpack"]
     assert auto.choose(big(linsolve.PARDISO_LIMIT + 100, symmetric), spd=spd) == "superlu"

@@ -4,7 +4,7 @@ of a coarse ring against the default path, and a run on 2 MPI ranks
 (``mpiexec -n 2``) against the serial one.
 
 Everything but the partition and the message needs petsc4py (the ``petsc``
-extra, a source build: see docs/performance.md, "PETSc and MPI") and is
+extra, a source build: see docs/benchmarks/partitioned.md, "PETSc and MPI") and is
 skipped without it; the MPI test also needs ``mpiexec`` of the MPI that
 PETSc was built with (``SKFEM_RKPM_MPIEXEC`` overrides the one on PATH).
 """
@@ -46,7 +46,7 @@ def has_petsc():
 
 needs_petsc = pytest.mark.skipif(
     not has_petsc(), reason="petsc4py is not installed (a source build of PETSc with MPI "
-                            "and MUMPS: bash .ci/run-mpi, or docs/performance.md, "
+                            "and MUMPS: bash .ci/run-mpi, or docs/benchmarks/partitioned.md, "
                             "\"PETSc and MPI\")")
 
 

@@ -21,7 +21,7 @@ Two compiled passes, one point at a time:
 
 Everything runs on one core.  ``cache=True`` stores the machine code next to
 this file (``__pycache__``), so only the first call after installing pays
-the compilation (see docs/performance.md, "Compiled kernel (optional)").
+the compilation (see docs/benchmarks/shape_and_assembly.md, "Compiled kernel (optional)").
 """
 
 import numpy as np

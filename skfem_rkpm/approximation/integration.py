@@ -336,7 +336,7 @@ def _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius, reduction=WHO
 RTOL = 1e-13
 #: up to this many unknowns the VCI systems of :func:`_pinned_spd_solve`
 #: (order 2, symmetric VCI) are factored (SuperLU): measured on the order-1
-#: system of the rectangle of docs/performance.md ("Building an RK basis"),
+#: system of the rectangle of docs/benchmarks/basis_build.md,
 #: when it was solved that way, the factorization is as fast as AMG + CG at
 #: 1.7e4 unknowns (0.8 against 0.9 s) and slower above (16 against 9 s at
 #: 1.1e5), where its fill grows faster than the particles
@@ -368,7 +368,7 @@ def _pinned_spd_solve(M, b, pinned, rtol=RTOL, iterative=True):
     (SuperLU) with one step of refinement, whose fill grows faster than the
     particles (it runs out of 20 GB near 7e5 particles in 2D).  Both agree
     to about ``rtol`` times the condition number of ``M``
-    (docs/performance.md, "Building an RK basis").
+    (docs/benchmarks/basis_build.md).
     """
     n = M.shape[0]
     free = np.ones(n)

@@ -17,9 +17,9 @@ __all__ = ["AGGREGATE_SIDE", "laplacian_solve", "two_level_preconditioner"]
 
 #: side of the grid cells whose particles (of one body) form one aggregate of
 #: the coarse space of :func:`laplacian_solve`, in median support radii:
-#: measured on the 17k rectangle of docs/performance.md ("Building an RK
-#: basis"), 1, 1.5 and 2 radii take 32-62, 40 and 48 iterations per
-#: right-hand side (Jacobi alone 210-230)
+#: measured on the 17k rectangle of docs/benchmarks/basis_build.md, 1, 1.5
+#: and 2 radii take 32-62, 40 and 48 iterations per right-hand side (Jacobi
+#: alone 210-230)
 AGGREGATE_SIDE = 1.5
 
 
@@ -37,8 +37,8 @@ def laplacian_solve(M, b, body, nbodies, nodes, radius, rtol, maxiter=1000):
     body (any other constant per body solves it as well).  Each iteration is
     one product with ``M`` and one solve with the coarse matrix: time and
     memory grow like the nonzeros of ``M`` (about 40 iterations per
-    right-hand side on the 17k rectangle of docs/performance.md, "Building an
-    RK basis"), and no fill is formed but the coarse one.  The iteration
+    right-hand side on the 17k rectangle of docs/benchmarks/basis_build.md),
+    and no fill is formed but the coarse one.  The iteration
     stops at the relative residual ``rtol``, checked on ``b - M x`` itself.
 
     Raises

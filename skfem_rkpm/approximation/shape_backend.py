@@ -19,8 +19,8 @@ BACKEND_VARIABLE = "SKFEM_RKPM_SHAPE_BACKEND"
 #: "auto" loads the compiled kernel only for a call with at least this many
 #: evaluation points: loading numba and the cached machine code takes
 #: 0.3-0.4 s of CPU, which the compiled kernel saves back (1-3 µs per point)
-#: on about this many points (docs/performance.md, "Compiled kernel
-#: (optional)"); once loaded, it is used for every call
+#: on about this many points (docs/benchmarks/shape_and_assembly.md,
+#: "Compiled kernel (optional)"); once loaded, it is used for every call
 AUTO_MIN_POINTS = 200_000
 
 

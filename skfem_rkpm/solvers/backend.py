@@ -35,7 +35,7 @@ _INSTALL_NOTES = {
     "petsc": " (petsc4py has no wheel: pip builds PETSc from source, about 20 minutes; "
              "for MPI put an MPI compiler wrapper (mpicc) on PATH before the build, and "
              "for MUMPS pass a MUMPS installation in PETSC_CONFIGURE_OPTIONS; see "
-             "docs/performance.md, \"PETSc and MPI\"; on Debian 12 `bash .ci/run-mpi` "
+             "docs/benchmarks/partitioned.md, \"PETSc and MPI\"; on Debian 12 `bash .ci/run-mpi` "
              "installs it all)",
 }
 _INSTALL_NOTES["petsc-gamg"] = _INSTALL_NOTES["petsc"]

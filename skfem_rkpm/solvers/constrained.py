@@ -142,7 +142,7 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     half-way and must pivot off the diagonal there (2675 of 4160 pivots on
     a coarse 3D RK ring sector with weak symmetry planes), which undoes the
     ordering: 14.0 million factor entries against 6.8 million for ``K_ρ``,
-    3.3 s against 0.7 s under load (docs/performance.md).
+    3.3 s against 0.7 s under load (docs/benchmarks/linear_solvers.md).
 
     ``rtol`` is the backward error of the saddle-point system
     (:func:`_backward_error`) that iterative refinement goes for (1e-12,

@@ -26,7 +26,7 @@ Backends (``make_solver(name)``):
     pivoting if the residual is poor.  Always available; handles any
     nonsingular matrix; factors the 1e5-particle RK tangent in 1.5-2.0× the
     time and 1.7× the memory of PARDISO, refactors it in 2.5-2.7× the time
-    (docs/performance.md).
+    (docs/benchmarks/linear_solvers.md).
 ``"pardiso"``
     MKL PARDISO through ``pypardiso`` (``pip install skfem-rkpm[pardiso]``,
     about 1 GB with MKL).  Any nonsingular matrix; analysis reused.
@@ -35,7 +35,7 @@ Backends (``make_solver(name)``):
     (``pip install skfem-rkpm[umfpack]``, 21 MB, 65 MB installed, no
     compiler needed).  Any nonsingular matrix; analysis reused.  Only by
     name: on the RK tangents measured it is no faster than SuperLU with
-    nested dissection and its solves are 10× slower (docs/performance.md).
+    nested dissection and its solves are 10× slower (docs/benchmarks/linear_solvers.md).
 ``"cholmod"``
     CHOLMOD supernodal Cholesky through ``scikit-sparse``
     (``pip install skfem-rkpm[cholmod]`` after
@@ -88,7 +88,7 @@ PARDISO_LIMIT = 20000
 #: SuperLU orders systems above this size by nested dissection (if ``pymetis``
 #: is installed), smaller ones by MMD: measured on one core on the 2D RK
 #: tangents (support 3), MMD is faster at 2e4 unknowns (2.0 s against 2.9 s),
-#: nested dissection at 3.4e4 (5.4 s against 6.2 s; docs/performance.md)
+#: nested dissection at 3.4e4 (5.4 s against 6.2 s; docs/benchmarks/linear_solvers.md)
 ND_LIMIT = 30000
 
 
@@ -136,7 +136,7 @@ class SuperLU(Solver):
     ``K + ρCᵀC`` instead.  MMD's fill grows too fast for 2D RK tangents of
     1e5 particles (SuperLU fails with "gstrf was called with invalid
     arguments" after minutes); nested dissection factors them
-    (docs/performance.md, "Linear solvers").  The nested dissection ordering
+    (docs/benchmarks/linear_solvers.md).  The nested dissection ordering
     and the permutation of the pattern are the symbolic analysis, reused
     while the pattern stays; scipy exposes no other symbolic phase.
     """
@@ -446,7 +446,7 @@ class Auto(Solver):
     AMG is never picked: it is an iterative method whose cost depends on
     the problem; ask for it by name.  Nor is UMFPACK: it is no faster than
     SuperLU with nested dissection on the RK tangents measured, and it did
-    not factor the 1e5-particle one in 300 s (docs/performance.md).  Backends are kept between calls so
+    not factor the 1e5-particle one in 300 s (docs/benchmarks/linear_solvers.md).  Backends are kept between calls so
     that each reuses its analysis.
     """
 

@@ -5,17 +5,13 @@ table): the top-level modules ``meshes`` and ``assembly``; ``approximation``
 (RK functions); ``mechanics`` (physics on any basis); ``solvers``; then
 ``verification`` and ``runs``, which use everything below and not each other.
 A module may import modules of its own folder and of folders of a lower
-rank.  Every import counts, also those inside functions.  The forwarding
-modules of the old flat layout (``skfem_rkpm/basis.py`` and the like) are
-left out: they exist to point at the new places.
+rank.  Every import counts, also those inside functions.
 """
 
 import ast
 import subprocess
 import sys
 from pathlib import Path
-
-import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "skfem_rkpm"
 
@@ -33,17 +29,13 @@ def module_name(path):
     return ".".join(parts)
 
 
-def is_forwarding(source):
-    return "forward(__name__" in source
-
-
 def package_modules():
-    """``{module name: (path, source)}`` of the package, forwarding modules left out."""
+    """``{module name: (path, source)}`` of the package, its ``__init__`` left out."""
     modules = {}
     for path in sorted(PACKAGE.rglob("*.py")):
         source = path.read_text()
         name = module_name(path)
-        if name in ("skfem_rkpm", "skfem_rkpm._moved") or is_forwarding(source):
+        if name == "skfem_rkpm":
             continue
         modules[name] = (path, source)
     return modules
@@ -140,23 +132,17 @@ def test_importing_the_package_loads_no_optional_dependency():
     assert out == "", f"import skfem_rkpm loads the optional packages {out}"
 
 
-@pytest.mark.parametrize("old, new, name", [
-    ("skfem_rkpm.basis", "skfem_rkpm.approximation.basis", "RKBasis"),
-    ("skfem_rkpm.linsolve", "skfem_rkpm.solvers.constrained", "solve_saddle_point"),
-    ("skfem_rkpm.solver", "skfem_rkpm.solvers.newton", "newton_steps"),
-    ("skfem_rkpm.runner", "skfem_rkpm.runs.runner", "run"),
-    ("skfem_rkpm.mechanics.contact", "skfem_rkpm.runs.build", "from_scene"),
-])
-def test_old_paths_forward_with_a_deprecation_warning(old, new, name):
-    code = ("import importlib, warnings\n"
-            "with warnings.catch_warnings(record=True) as caught:\n"
-            "    warnings.simplefilter('always')\n"
-            f"    old = importlib.import_module({old!r})\n"
-            f"obj = getattr(old, {name!r})\n"
-            f"new = importlib.import_module({new!r})\n"
-            "print(any(issubclass(w.category, DeprecationWarning) and "
-            f"{new!r} in str(w.message) for w in caught))\n"
-            f"print(obj is getattr(new, {name!r}, None) or obj.__module__ == {new!r})\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout.split()
-    assert out == ["True", "True"]
+def test_no_module_forwards_its_names():
+    """No module (the package's ``__init__`` included) hands attribute
+    look-ups to other modules through a module-level ``__getattr__``: each
+    name is found in the module whose path it is imported from."""
+    forwarding = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            names = ([node.name] if isinstance(node, ast.FunctionDef)
+                     else [t.id for n in ([node] if isinstance(node, ast.Assign) else [])
+                           for t in ast.walk(n) if isinstance(t, ast.Name)
+                           and isinstance(t.ctx, ast.Store)])
+            if "__getattr__" in names:
+                forwarding.append(str(path.relative_to(PACKAGE.parent)))
+    assert not forwarding, f"modules with a module-level __getattr__: {forwarding}"

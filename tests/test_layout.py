@@ -1,8 +1,9 @@
 """The package layout: folders import only folders under them, no circles.
 
-The rooms, from the bottom up (docs/../DESIGN picture, README's module
-table): the top-level modules ``meshes`` and ``assembly``; ``approximation``
-(RK functions); ``mechanics`` (physics on any basis); ``solvers``; then
+The rooms, from the bottom up (README's module table): the folder
+``meshes`` and, beside it, the top-level modules ``assembly`` and ``forms``
+(two rooms of rank 0, neither importing the other); ``approximation`` (RK
+functions); ``mechanics`` (physics on any basis); ``solvers``; then
 ``verification`` and ``runs``, which use everything below and not each other.
 A module may import modules of its own folder and of folders of a lower
 rank.  Every import counts, also those inside functions.
@@ -15,7 +16,7 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "skfem_rkpm"
 
-RANK = {"": 0, "approximation": 1, "mechanics": 2, "solvers": 3,
+RANK = {"": 0, "meshes": 0, "approximation": 1, "mechanics": 2, "solvers": 3,
         "verification": 4, "runs": 4}
 
 OPTIONAL = ("numba", "dask", "distributed", "pypardiso", "sksparse", "pyamg", "cvxopt",
@@ -122,6 +123,17 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     targets = imported_modules("skfem_rkpm.approximation.example", path, source)
     assert targets == {"skfem_rkpm.solvers.linear"}
     assert RANK[folder("skfem_rkpm.solvers.linear")] > RANK["approximation"]
+
+
+def test_the_checker_sees_a_mesh_module_importing_a_top_level_module():
+    """meshes and the top-level modules share rank 0: an import between them
+    is sideways, and refused."""
+    source = "from ..assembly import layout\n"
+    path = PACKAGE / "meshes" / "example.py"
+    targets = imported_modules("skfem_rkpm.meshes.example", path, source)
+    assert targets == {"skfem_rkpm.assembly"}
+    a, b = folder("skfem_rkpm.meshes.example"), folder("skfem_rkpm.assembly")
+    assert (a, b) == ("meshes", "") and RANK[b] >= RANK[a]
 
 
 def test_importing_the_package_loads_no_optional_dependency():

@@ -1,13 +1,12 @@
 """The package layout: folders import only folders under them, no circles.
 
-The rooms, from the bottom up (docs/../DESIGN picture, README's module
-table): the top-level modules ``meshes`` and ``assembly``; ``approximation``
-(RK functions); ``mechanics`` (physics on any basis); ``solvers``; then
+The rooms, from the bottom up (README's module table): the folder
+``meshes`` and, beside it, the top-level modules ``assembly`` and ``forms``
+(two rooms of rank 0, neither importing the other); ``approximation`` (RK
+functions); ``mechanics`` (physics on any basis); ``solvers``; then
 ``verification`` and ``runs``, which use everything below and not each other.
 A module may import modules of its own folder and of folders of a lower
-rank.  Every import counts, also those inside functions.  The forwarding
-modules of the old flat layout (``skfem_rkpm/basis.py`` and the like) are
-left out: they exist to point at the new places.
+rank.  Every import counts, also those inside functions.
 """
 
 import ast
@@ -15,11 +14,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 PACKAGE = Path(__file__).resolve().parent.parent / "skfem_rkpm"
 
-RANK = {"": 0, "approximation": 1, "mechanics": 2, "solvers": 3,
+RANK = {"": 0, "meshes": 0, "approximation": 1, "mechanics": 2, "solvers": 3,
         "verification": 4, "runs": 4}
 
 OPTIONAL = ("numba", "dask", "distributed", "pypardiso", "sksparse", "pyamg", "cvxopt",
@@ -33,17 +30,13 @@ def module_name(path):
     return ".".join(parts)
 
 
-def is_forwarding(source):
-    return "forward(__name__" in source
-
-
 def package_modules():
-    """``{module name: (path, source)}`` of the package, forwarding modules left out."""
+    """``{module name: (path, source)}`` of the package, its ``__init__`` left out."""
     modules = {}
     for path in sorted(PACKAGE.rglob("*.py")):
         source = path.read_text()
         name = module_name(path)
-        if name in ("skfem_rkpm", "skfem_rkpm._moved") or is_forwarding(source):
+        if name == "skfem_rkpm":
             continue
         modules[name] = (path, source)
     return modules
@@ -132,6 +125,17 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     assert RANK[folder("skfem_rkpm.solvers.linear")] > RANK["approximation"]
 
 
+def test_the_checker_sees_a_mesh_module_importing_a_top_level_module():
+    """meshes and the top-level modules share rank 0: an import between them
+    is sideways, and refused."""
+    source = "from ..assembly import layout\n"
+    path = PACKAGE / "meshes" / "example.py"
+    targets = imported_modules("skfem_rkpm.meshes.example", path, source)
+    assert targets == {"skfem_rkpm.assembly"}
+    a, b = folder("skfem_rkpm.meshes.example"), folder("skfem_rkpm.assembly")
+    assert (a, b) == ("meshes", "") and RANK[b] >= RANK[a]
+
+
 def test_importing_the_package_loads_no_optional_dependency():
     code = ("import sys, skfem_rkpm\n"
             f"print(' '.join(m for m in {OPTIONAL!r} if m in sys.modules))")
@@ -140,23 +144,17 @@ def test_importing_the_package_loads_no_optional_dependency():
     assert out == "", f"import skfem_rkpm loads the optional packages {out}"
 
 
-@pytest.mark.parametrize("old, new, name", [
-    ("skfem_rkpm.basis", "skfem_rkpm.approximation.basis", "RKBasis"),
-    ("skfem_rkpm.linsolve", "skfem_rkpm.solvers.constrained", "solve_saddle_point"),
-    ("skfem_rkpm.solver", "skfem_rkpm.solvers.newton", "newton_steps"),
-    ("skfem_rkpm.runner", "skfem_rkpm.runs.runner", "run"),
-    ("skfem_rkpm.mechanics.contact", "skfem_rkpm.runs.build", "from_scene"),
-])
-def test_old_paths_forward_with_a_deprecation_warning(old, new, name):
-    code = ("import importlib, warnings\n"
-            "with warnings.catch_warnings(record=True) as caught:\n"
-            "    warnings.simplefilter('always')\n"
-            f"    old = importlib.import_module({old!r})\n"
-            f"obj = getattr(old, {name!r})\n"
-            f"new = importlib.import_module({new!r})\n"
-            "print(any(issubclass(w.category, DeprecationWarning) and "
-            f"{new!r} in str(w.message) for w in caught))\n"
-            f"print(obj is getattr(new, {name!r}, None) or obj.__module__ == {new!r})\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout.split()
-    assert out == ["True", "True"]
+def test_no_module_forwards_its_names():
+    """No module (the package's ``__init__`` included) hands attribute
+    look-ups to other modules through a module-level ``__getattr__``: each
+    name is found in the module whose path it is imported from."""
+    forwarding = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            names = ([node.name] if isinstance(node, ast.FunctionDef)
+                     else [t.id for n in ([node] if isinstance(node, ast.Assign) else [])
+                           for t in ast.walk(n) if isinstance(t, ast.Name)
+                           and isinstance(t.ctx, ast.Store)])
+            if "__getattr__" in names:
+                forwarding.append(str(path.relative_to(PACKAGE.parent)))
+    assert not forwarding, f"modules with a module-level __getattr__: {forwarding}"

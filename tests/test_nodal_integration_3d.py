@@ -43,7 +43,7 @@ Physical Volume("block") = {1};
 
 @pytest.fixture(scope="module")
 def gmsh_tets(tmp_path_factory):
-    from skfem_rkpm.gmsh_meshes import load
+    from skfem_rkpm.meshes.gmsh import load
 
     path = tmp_path_factory.mktemp("gmsh") / "graded.geo"
     path.write_text(GRADED_GEO)

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import skfem_rkpm.runs.runner as runner
-from skfem_rkpm.geo_check import unsafe_geo_commands
+from skfem_rkpm.meshes.geo_check import unsafe_geo_commands
 from skfem_rkpm.runs.checkpoint import run_identity
 from skfem_rkpm.runs.cli import main
 from skfem_rkpm.runs.folder import RunFolder

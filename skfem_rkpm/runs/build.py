@@ -110,7 +110,7 @@ def build(scene, method=None, trust_geo=False):
     """Turn a validated scene (see :func:`skfem_rkpm.runs.scene.load_scene`) into a
     :class:`Simulation`; ``method`` overrides ``model.method``; ``trust_geo``
     lets a gmsh ``.geo`` geometry file run programs or read other files
-    (refused otherwise, see :func:`skfem_rkpm.geo_check.check_geo`)."""
+    (refused otherwise, see :func:`skfem_rkpm.meshes.geo_check.check_geo`)."""
     model = scene["model"]["type"]
     method = method or scene["model"]["method"]
     mesh = mesh_from(scene["geometry"], scene.get("_base"), trust_geo)

@@ -166,11 +166,11 @@ def check_mesh(scene, mesh):
 def mesh_from(section, base=None, trust_geo=False):
     """The background mesh of a scene's geometry section (``trust_geo``: let a
     ``.geo`` file run programs or read other files, see
-    :func:`skfem_rkpm.geo_check.check_geo`)."""
+    :func:`skfem_rkpm.meshes.geo_check.check_geo`)."""
     from ..meshes import box, graded_rectangle, load, rectangle
 
     if section["kind"] == "annulus":
-        from ..annulus import annulus
+        from ..meshes import annulus
 
         nr, nt = section["divisions"]
         grading = (section.get("grading") or [1.0, 1.0])[0]
@@ -181,7 +181,7 @@ def mesh_from(section, base=None, trust_geo=False):
         except ValueError as err:
             raise SceneError(f"geometry: {err}") from err
     if section["kind"] == "ring_sector":
-        from ..annulus import ring_sector
+        from ..meshes import ring_sector
 
         try:
             return ring_sector(*section["radii"], section["lz"], *section["divisions"],

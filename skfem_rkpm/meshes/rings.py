@@ -14,8 +14,8 @@ Named boundaries: ``inner`` and ``outer`` (the circles) and, for a sector,
 
 import numpy as np
 
-from ._mesh_cells import _cells, _make_mesh, _number, _positive
-from .meshes import _geometric_nodes
+from ._cells import _cells, _make_mesh, _number, _positive
+from .structured import _geometric_nodes
 
 __all__ = ["annulus", "ring_sector"]
 

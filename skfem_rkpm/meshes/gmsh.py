@@ -17,7 +17,7 @@ import numpy as np
 import skfem
 from skfem.io.meshio import INV_HEX_MAPPING
 
-from ._mesh_cells import _check_kind, _make_mesh, _positive
+from ._cells import _check_kind, _make_mesh, _positive
 from .geo_check import check_geo
 
 __all__ = ["gmsh_rectangle", "gmsh_plate_with_hole", "from_gmsh", "load"]
@@ -406,7 +406,7 @@ def load(path, trust_geo=False):
     ``Mesh.RecombineAll = 1;`` for quadrilaterals), in 3D if it defines
     volumes, in 2D otherwise.  It is refused if it
     runs programs, reads other files or writes files
-    (:func:`skfem_rkpm.geo_check.check_geo`), unless ``trust_geo``.
+    (:func:`skfem_rkpm.meshes.geo_check.check_geo`), unless ``trust_geo``.
 
     Parameters
     ----------

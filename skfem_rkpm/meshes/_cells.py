@@ -1,7 +1,6 @@
 """Cells of the generated meshes: argument checks, counter-clockwise
 orientation and the scikit-fem mesh with its box sides, shared by
-:mod:`skfem_rkpm.meshes`, :mod:`skfem_rkpm.gmsh_meshes` and
-:mod:`skfem_rkpm.annulus`."""
+:mod:`.structured`, :mod:`.gmsh` and :mod:`.rings`."""
 
 import numpy as np
 import skfem

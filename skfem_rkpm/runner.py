@@ -1,5 +1,0 @@
-"""Moved to :mod:`skfem_rkpm.runs.runner` (this path goes in the next release)."""
-
-from ._moved import forward
-
-__getattr__, __all__ = forward(__name__, "skfem_rkpm.runs.runner")

@@ -30,7 +30,7 @@ map) plus a small random perturbation.  Timed per scheme, median of ``--repeat``
 * *setup*: building the basis and the problem (shape functions, VCI or the
   smoothing cells, the stabilization matrix), done once per run.
 
-Target (issue 17): an SCNI iteration (material + assembly) at most 1/4 of the
+Target: an SCNI iteration (material + assembly) at most 1/4 of the
 Gauss+VCI one.
 
 Part 2, accuracy.  Timoshenko's cantilever (linear elasticity, plane stress,

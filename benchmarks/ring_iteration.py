@@ -27,7 +27,7 @@ branch), each part ``--repeat`` times (the fastest run is reported):
   the symmetry-plane constraints;
 * *iteration*: evaluate + contact + sum + solve, timed as one.
 
-Targets (issue 6): an RK iteration in at most 20 ms, at most 5 times the FEM
+Targets: an RK iteration in at most 20 ms, at most 5 times the FEM
 Q1 one; the whole stick ring (100 steps) in at most 15 s.  Times are CPU
 milliseconds of the process (``--clock cpu``, the default; on one core they
 equal the wall time of an idle machine and hardly grow when other processes

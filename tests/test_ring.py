@@ -221,7 +221,7 @@ def test_scni_run_writes_its_fields_at_the_particles(tmp_path):
 @pytest.mark.slow
 def test_paper_ring_with_scni_matches_gauss_vci():
     """μ = 0.15 to 50 % at the paper's particles: SCNI (scene default α = 1e-3)
-    against Gauss+VCI on the same particles, the issue's targets of 1 point in
+    against Gauss+VCI on the same particles, the targets of 1 point in
     the inner-diameter change and 2 % in the platen force (measured 0.40 points,
     1.3 %; see docs/nodal_integration.md)."""
     results = {}

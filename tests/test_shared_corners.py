@@ -131,7 +131,7 @@ def test_prescribed_translation_is_exact(method, how, left, bottom):
 @pytest.mark.parametrize("how", ["nodal", "weak"])
 @pytest.mark.parametrize("left,bottom", COMBINATIONS)
 def test_newton_with_shared_corners_balances_the_load(method, how, left, bottom):
-    """The crash of the issue (left x, bottom x and y) and every other
+    """The reported crash (left x, bottom x and y) and every other
     combination run; the reactions add up to the applied pressure."""
     basis = make_basis(method)
     problem = SolidProblem(basis, J2Material(E, NU))

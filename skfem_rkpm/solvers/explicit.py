@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import ArpackNoConvergence, eigsh
+from scipy.sparse.linalg import ArpackNoConvergence, eigsh, splu
 
 from ..mechanics.mass import lumped_mass
 from ..mechanics.problem import InvertedElementError, NonFiniteError
@@ -101,10 +101,15 @@ class CentralDifference:
         Steps between two estimates of ``ω_max`` on the current configuration.
     mass : ndarray, optional
         A lumped mass of the problem's coefficients (default: the row sums).
+    constraints : sequence of Constraint
+        Homogeneous kinematic conditions ``C d = 0`` (an axis, a symmetry
+        plane, a fixed face: :func:`~skfem_rkpm.approximation.constraints.nodal_constraint`,
+        the rows of ``Λᵀ`` of Eq. 3.32-3.34), held by projecting velocities
+        and accelerations (:meth:`project`).
     """
 
     def __init__(self, problem, density, contacts=(), safety=0.9, estimate_every=50,
-                 mass=None):
+                 mass=None, constraints=()):
         if not 0.0 < safety <= 1.0:
             raise ValueError(f"safety must lie in (0, 1], not {safety!r}")
         if int(estimate_every) < 1:
@@ -123,6 +128,24 @@ class CentralDifference:
         self._contact_omega2 = sum(contact_frequency_bound(c, self.mass)
                                    for c in self.contacts)
         self._mode = None
+        self._constraint = None
+        if len(constraints):
+            C = sp.vstack([sp.csr_matrix(c.C) for c in constraints]).tocsr()
+            CMinv = (C @ sp.diags(1.0 / self.mass)).tocsr()
+            self._constraint = (C, CMinv.T.tocsr(), splu((CMinv @ C.T).tocsc()))
+
+    def project(self, x):
+        """``x − M⁻¹Cᵀ (C M⁻¹ Cᵀ)⁻¹ C x``: the part of a velocity or an
+        acceleration that keeps ``C d = 0``, nearest in the mass's norm.
+
+        ``C M⁻¹ Cᵀ`` has one row per constrained node and is factored once
+        (the functions and the mass are those of the reference
+        configuration).  The reactions do no work on the projected motion.
+        """
+        if self._constraint is None:
+            return x
+        C, MinvCT, S = self._constraint
+        return x - MinvCT @ S.solve(C @ x)
 
     def body_frequency2(self, d, state=None):
         """Largest ``ω²`` of ``M⁻¹K`` with the tangent at coefficients ``d``
@@ -171,13 +194,13 @@ class CentralDifference:
         at the start, every ``output_interval`` (default: the end only) and
         the end; ``on_output(record)`` sees each one as it is made.
         """
-        d, v = np.array(d, dtype=float), np.array(v, dtype=float)
+        d, v = np.array(d, dtype=float), self.project(np.array(v, dtype=float))
         m, time, step = self.mass, 0.0, 0
         f_ext = (lambda _: np.zeros_like(d)) if external is None else external
         evaluation, f_c = self._forces(d, 0.0)
         self._commit(evaluation)
         f_int, fe = evaluation.f_int, f_ext(0.0)
-        a = (fe - f_int - f_c) / m
+        a = self.project((fe - f_int - f_c) / m)
         W_int = W_c = W_ext = 0.0
         records, next_output = [], 0.0
         h = dt if dt is not None else self.stable_step(d)
@@ -222,7 +245,7 @@ class CentralDifference:
             W_int += 0.5 * delta @ (f_int + evaluation.f_int)
             W_c += 0.5 * delta @ (f_c + f_c_new)
             W_ext += 0.5 * delta @ (fe + fe_new)
-            a = (fe_new - evaluation.f_int - f_c_new) / m
+            a = self.project((fe_new - evaluation.f_int - f_c_new) / m)
             v = v_half + 0.5 * h_step * a
             d, f_int, f_c, fe, time = d_new, evaluation.f_int, f_c_new, fe_new, t_new
             h_last = h_step

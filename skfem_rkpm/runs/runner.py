@@ -84,7 +84,10 @@ class Progress:
     shown is the scene's (``step 7/100``), also when a step is solved in
     sub-steps; without ``count``, the solver's step counter."""
 
-    def __init__(self, stream=sys.stderr, enabled=True, count=None):
+    def __init__(self, stream=None, enabled=True, count=None):
+        # the standard error of now (a default bound at import would keep a
+        # stream that may have been replaced and closed since)
+        stream = sys.stderr if stream is None else stream
         self.stream, self.enabled, self.count = stream, enabled, count
         self.start = time.perf_counter()
         self.live = bool(getattr(stream, "isatty", lambda: False)())
@@ -408,8 +411,9 @@ def blas_threads(count=1):
     """Limit the BLAS libraries to ``count`` threads for the block.
 
     A run solves many small dense systems (the moment matrices, Eq. 2.33);
-    threads that spin on them cost CPU time and gain none (the ring: 7.9 s
-    CPU for 4.8 s wall with OpenBLAS's default, 4.6 s with one thread).
+    threads that spin on them cost CPU time and gain none (``skfem-rkpm run
+    ring`` on 2 shared cores, load 5-7: 28.5 s CPU with two threads,
+    OpenBLAS's default there, 8.4 s with one; medians of 3).
     The loaded libraries are limited with threadpoolctl; a library loaded
     inside the block (the MKL of PARDISO, cvxopt's OpenBLAS) reads
     ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS``, set for the block.

@@ -198,20 +198,20 @@ def _positive_int(text):
     return value
 
 
-def _folder_options(p, sweep=False):
+def _folder_options(p, kind):
     """``--overwrite`` and ``--threads`` of run, compare and sweep."""
+    names = {"run": "history.csv, scene.toml, fields/step-*.h5, the figures",
+             "compare": "report.md, compare.png; the runs' files in rkpm/ and fem/",
+             "sweep": "sweep.csv"}[kind]
     p.add_argument("--overwrite", action="store_true",
-                   help="also write into a folder that is neither empty nor an output "
-                        "folder of skfem-rkpm: the program's files go beside the ones "
-                        "there, which are never changed or removed; a file there with "
-                        "the name of one the program writes (history.csv, fields/, "
-                        "report.md, sweep.csv, ...) is refused even so: move it or "
-                        "choose another --out.  Without it such a folder is refused; "
-                        "an output folder of skfem-rkpm is replaced without it, "
-                        "removing only the files it wrote (its .skfem-rkpm.json lists "
-                        "them)")
+                   help="write into a folder that is neither empty nor one skfem-rkpm "
+                        "wrote: the program's files go beside the files there, which "
+                        "are never changed or removed; a file there at a name the "
+                        f"program writes ({names}) is refused even so.  A folder "
+                        "skfem-rkpm wrote needs no --overwrite: its .skfem-rkpm.json "
+                        "lists the program's files, and only those are replaced")
     p.add_argument("--threads", type=_positive_int, default=1, metavar="N",
-                   help="BLAS threads" + (" of every run" if sweep else "")
+                   help="BLAS threads" + (" of every run" if kind == "sweep" else "")
                         + " (default 1: the many small dense solves of a run are "
                           "slower spread over threads)")
 
@@ -241,7 +241,7 @@ def main(argv=None):
                                       "output folder (default results/SCENE-compare)")
                        + "; with --set a hash of the settings is added")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
-        _folder_options(p)
+        _folder_options(p, name)
         p.add_argument("--trust-geo", action="store_true",
                        help="let the scene's gmsh .geo file run programs or read and "
                             "write other files (refused otherwise)")
@@ -273,7 +273,7 @@ def main(argv=None):
     p.add_argument("--out", help="sweep folder (default results/SCENE-sweep; with --set a "
                                  "hash of the settings is added)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
-    _folder_options(p, sweep=True)
+    _folder_options(p, "sweep")
     p.set_defaults(func=cmd_sweep)
     args = parser.parse_args(argv)
     shown, warnings.showwarning = warnings.showwarning, _show_warning

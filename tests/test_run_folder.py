@@ -243,3 +243,35 @@ def test_a_folder_of_another_run_in_progress_is_not_cleared(tmp_path):
             with RunFolder(out):
                 pass
     assert (out / "history.csv").read_text() == "in progress\n"
+
+
+def test_temporaries_of_a_killed_run_go_and_a_users_look_alike_stays(tmp_path):
+    out = tmp_path / "run"
+    assert main(run_args(out)) == 0
+    left = [out / ".history.csv.4242.tmp", out / "fields" / ".step-000003.h5.4242.tmp",
+            out / f".{MARKER}.4242.tmp"]  # what a kill during a write leaves
+    for path in left:
+        path.write_bytes(b"part")
+    mine = [out / ".notes.txt.4242.tmp", out / ".history.csv.draft.tmp"]
+    for path in mine:
+        path.write_bytes(b"mine")
+    assert main(run_args(out)) == 0
+    assert not any(path.exists() for path in left)
+    assert all(path.read_bytes() == b"mine" for path in mine)
+
+
+def test_a_sweep_trusts_only_the_result_its_run_wrote(tmp_path):
+    from skfem_rkpm.runs.folder import SWEEP_RUN
+    from skfem_rkpm.runs.sweep import _finished
+
+    record = {"status": "completed", "steps": 3}
+    planted = tmp_path / "run-planted"  # a result.json put there by someone else
+    planted.mkdir()
+    (planted / "result.json").write_text(json.dumps(record))
+    assert _finished(planted) is None
+    ours = tmp_path / "run-ours"
+    with RunFolder(ours, writes=SWEEP_RUN) as folder:
+        folder.write("result.json", json.dumps(record))
+    assert _finished(ours) == record
+    (ours / "result.json").write_text(json.dumps(dict(record, status="failed")))
+    assert _finished(ours) is None  # a failed run is tried again

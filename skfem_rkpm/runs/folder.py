@@ -43,7 +43,7 @@ import socket
 from pathlib import Path, PurePosixPath
 
 __all__ = ["FolderError", "RunFolder", "atomic_path", "write_atomic", "open_append",
-           "read_manifest", "MARKER", "WRITES"]
+           "read_manifest", "MARKER", "WRITES", "SWEEP_RUN"]
 
 #: the manifest that marks a folder as the program's and lists its files
 MARKER = ".skfem-rkpm.json"
@@ -51,14 +51,18 @@ LOCK = ".lock"
 
 #: what each kind of folder may write (names and ``fnmatch`` patterns, relative
 #: to the folder); the figures are those of
-#: :func:`skfem_rkpm.runs.plot.save_run_figures`, ``result.json`` a sweep's
+#: :func:`skfem_rkpm.runs.plot.save_run_figures` (a run of a sweep also
+#: writes ``result.json``: :data:`SWEEP_RUN`)
 WRITES = {
     "run": ("status.txt", "scene.toml", "history.csv", "history.jsonl", "fields.xdmf",
             "fields", "fields/mesh.h5", "fields/step-*.h5", "checkpoint.npz",
-            "deformed.png", "forces.png", "calibration.png", "section.png", "result.json"),
+            "deformed.png", "forces.png", "calibration.png", "section.png"),
     "compare": ("report.md", "compare.png"),
     "sweep": ("sweep.csv",),
 }
+
+#: what a run of a sweep writes
+SWEEP_RUN = WRITES["run"] + ("result.json",)
 
 _FORMAT = 1
 _MAX_MANIFEST = 1 << 24
@@ -383,8 +387,9 @@ class RunFolder:
 
     def remove_temporaries(self):
         """Remove the temporary files a killed run left (``.NAME.PID.tmp`` of
-        the files the manifest lists); the lock guarantees no one writes them."""
-        for name in self.files:
+        the files the manifest lists, and of the manifest); the lock
+        guarantees no one writes them."""
+        for name in [MARKER, *self.files]:
             path = self._inside(name)
             if path is None or name.endswith("/") or not path.parent.is_dir():
                 continue

@@ -31,7 +31,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from .folder import FolderError, RunFolder, read_manifest
+from .folder import SWEEP_RUN, FolderError, RunFolder, read_manifest
 from .scene import SceneError, apply_setting, parse_scene, setting_origins
 
 __all__ = ["SweepError", "parse_vary", "split_values", "cases", "resolve_text",
@@ -201,7 +201,7 @@ def run_case(text, source, base, run_dir, params, origins=None, threads=1):
     start = time.perf_counter()
     ours = False
     try:
-        with RunFolder(run_dir) as folder:  # the scene first: kept if the build fails
+        with RunFolder(run_dir, writes=SWEEP_RUN) as folder:  # kept if the build fails
             folder.clear()
             folder.write("scene.toml", text)
         ours = True
@@ -210,7 +210,7 @@ def run_case(text, source, base, run_dir, params, origins=None, threads=1):
             sim = build(scene)
             result = run(sim, run_dir, progress=False)
         if scene["output"]["figures"] and result.history:
-            with RunFolder(run_dir, mode="add") as folder:
+            with RunFolder(run_dir, mode="add", writes=SWEEP_RUN) as folder:
                 save_run_figures(sim, result, run_dir, folder)
         record.update(status="completed" if result.completed else "incomplete",
                       completed=bool(result.completed), steps=len(result.history),
@@ -225,7 +225,7 @@ def run_case(text, source, base, run_dir, params, origins=None, threads=1):
         return record
     record.update(_final_row(run_dir / "history.csv"))
     try:
-        with RunFolder(run_dir, mode="add") as folder:
+        with RunFolder(run_dir, mode="add", writes=SWEEP_RUN) as folder:
             folder.write("result.json", json.dumps(record, indent=1))
     except Exception as err:  # a result that cannot be kept is still a result
         record["error"] = record["error"] or f"{type(err).__name__}: {err}"

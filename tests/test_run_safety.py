@@ -34,6 +34,14 @@ def small_ring(*more):
     return runner.build(load_scene(RING, SMALL + list(more)))
 
 
+def as_run_folder(out, files):
+    """Make ``out`` a run folder whose manifest lists ``files`` (as a run
+    that wrote them leaves it; the files are written by the caller)."""
+    out.mkdir(parents=True, exist_ok=True)
+    with RunFolder(out) as folder:
+        folder.claim(*files)
+
+
 def history_without_time(path):
     """History rows without the wall time (the one column that may differ)."""
     with open(path, newline="") as handle:
@@ -73,7 +81,7 @@ class Bomb:
 def test_a_malicious_pickle_in_a_run_folder_is_never_loaded(tmp_path, capsys, name):
     marker = tmp_path / "pwned"
     out = tmp_path / "run"
-    out.mkdir()
+    as_run_folder(out, [name])  # the manifest is someone else's too
     (out / name).write_bytes(pickle.dumps(Bomb(marker)))
     pickle.loads(pickle.dumps(Bomb(tmp_path / "works")))  # the bomb does go off
     assert (tmp_path / "works").exists()
@@ -95,6 +103,7 @@ def test_missing_empty_or_corrupt_checkpoint_gives_one_line(tmp_path, capsys, co
     out = tmp_path / "run"
     out.mkdir()
     if content is not None:
+        as_run_folder(out, ["checkpoint.npz"])
         (out / "checkpoint.npz").write_bytes(content)
     assert main(["run", "ring", *(f"--set={s}" for s in SMALL), "--out", str(out),
                  "--quiet", "--resume"]) == 2
@@ -187,10 +196,11 @@ def test_comments_strings_and_plain_geometry_pass():
 
 def test_outputs_never_write_through_a_symlink(tmp_path):
     out = tmp_path / "run"
-    out.mkdir()
+    names = ("history.csv", "status.txt", "fields.xdmf", "checkpoint.npz")
+    as_run_folder(out, names)  # a run folder whose outputs became links
     target = tmp_path / "precious.txt"
     target.write_text("keep me\n")
-    for name in ("history.csv", "status.txt", "fields.xdmf", "checkpoint.npz"):
+    for name in names:
         (out / name).symlink_to(target)
     result = runner.run(small_ring(), out, progress=False)
     assert result.completed and target.read_text() == "keep me\n"
@@ -274,8 +284,9 @@ def test_a_locked_folder_is_refused_and_a_dead_lock_is_not(tmp_path, capsys):
 
 def test_a_new_run_clears_the_folder_and_keeps_its_scene(tmp_path, monkeypatch):
     out = tmp_path / "run"
-    out.mkdir()
-    for name in ("deformed.png", "forces.png", "fields.xdmf", "history.csv"):
+    earlier = ("deformed.png", "forces.png", "fields.xdmf", "history.csv", "status.txt")
+    as_run_folder(out, earlier)
+    for name in earlier:
         (out / name).write_text("an earlier run")
     (out / "status.txt").write_text("completed\n")
     (out / "notes.txt").write_text("mine")
@@ -337,7 +348,7 @@ def test_missing_solver_package_is_one_line_and_leaves_the_folder(tmp_path, caps
 
     monkeypatch.setattr(linear, "available", lambda: ["dense", "superlu"])
     out = tmp_path / "run"
-    out.mkdir()
+    as_run_folder(out, ["status.txt"])  # an earlier run's folder
     (out / "status.txt").write_text("completed\n")
     code = main(["run", "ring", *(f"--set={s}" for s in SMALL), "--out", str(out),
                  "--quiet", "--solver", "pardiso"])

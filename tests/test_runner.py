@@ -135,3 +135,39 @@ def test_progress_counts_the_scenes_steps_when_a_step_was_cut():
     assert "step 101" not in stream.getvalue()
     # load factors a hair off the targets (sums of halved steps) stay put
     assert scene_step(0.3 + 1e-12, 10) == 3 and scene_step(0.3 - 1e-12, 10) == 3
+
+
+def test_the_command_line_runs_blas_with_one_thread_unless_told(tmp_path, monkeypatch):
+    """Without OPENBLAS_NUM_THREADS=1 in the shell, BLAS starts with a thread
+    per core; the command limits it (to 1, or --threads N) for the run and
+    restores it after."""
+    import os
+
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas():
+        return {i["filepath"]: i["num_threads"] for i in threadpool_info()
+                if i["user_api"] == "blas"}
+
+    seen, real = [], runner.run
+
+    def spy(*args, **kwargs):
+        seen.append((blas(), os.environ["OPENBLAS_NUM_THREADS"]))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run", spy)
+    small = ["--set=steps.count=1", "--set=geometry.divisions=[6,4]",
+             "--set=output.figures=false", "--set=output.fields=false", "--quiet"]
+    with threadpool_limits(limits=3, user_api="blas"):  # as in a plain shell
+        outside = blas()
+        three = [path for path, n in outside.items() if n == 3]  # numpy's, scipy's
+        assert three
+        assert main(["run", "ring", *small, "--out", str(tmp_path / "a")]) == 0
+        assert main(["run", "ring", *small, "--out", str(tmp_path / "b"),
+                     "--threads", "2"]) == 0
+        assert blas() == outside  # restored
+    (one, env1), (two, env2) = seen
+    assert set(one.values()) == {1} and env1 == "1"
+    assert {two[path] for path in three} == {2} and env2 == "2"
+    with pytest.raises(SystemExit):
+        main(["run", "ring", "--threads", "0"])

@@ -147,3 +147,41 @@ def test_settings_with_unknown_keys_or_line_breaks_are_refused(setting, message)
 def test_settings_for_a_new_tool_or_boundary_add_its_table():
     text = apply_setting(GOOD, "boundary.left.fix=[\"x\"]")
     assert parse_scene(text)["boundary.left"]["fix"] == ["x"]
+
+
+def test_a_bad_set_value_is_named_by_the_set_a_bad_file_value_by_its_line(tmp_path):
+    ring = builtin_scenes()["ring"]
+    line = next(n for n, text in enumerate(ring.read_text().splitlines(), start=1)
+                if text.startswith("E = "))
+    # the value came from --set: quoted as the user wrote it, no line of ring.toml
+    with pytest.raises(SceneError) as info:
+        load_scene(ring, ["material.E=nan"])
+    assert str(info.value) == "--set material.E=nan: must be finite, not nan"
+    # a key the file does not have, added by --set (once: the inserted line)
+    with pytest.raises(SceneError) as info:
+        load_scene(ring, ["discretization.dilation=-2"])
+    assert str(info.value).startswith("--set discretization.dilation=-2: must be positive")
+    # the last --set of a key is the one used, and the one named
+    with pytest.raises(SceneError) as info:
+        load_scene(ring, ["material.nu=0.3", "material.nu=0.7"])
+    assert str(info.value).startswith("--set material.nu=0.7: must lie in (-1, 0.5)")
+    # a combination checked after the values: named by the --set too
+    with pytest.raises(SceneError) as info:
+        load_scene(ring, ['material.hardening="swift"'])
+    assert str(info.value).startswith(
+        "--set material.hardening=\"swift\": swift needs 'K', 'n'")
+    # the same bad value in the file itself: its file and line, as before
+    bad = tmp_path / "ring.toml"
+    bad.write_text(ring.read_text().replace("E = 288e3", "E = nan"))
+    with pytest.raises(SceneError) as info:
+        load_scene(bad, ["steps.count=3"])  # another --set does not take the blame
+    assert str(info.value) == f"{bad}, line {line}: material.E: must be finite, not nan"
+
+
+def test_the_command_line_names_the_set(tmp_path, capsys):
+    from skfem_rkpm.runs.cli import main
+
+    assert main(["run", "ring", "--set", "material.E=nan", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err == "error: --set material.E=nan: must be finite, not nan\n"
+    assert not (tmp_path / "o").exists()

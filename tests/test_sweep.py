@@ -125,7 +125,9 @@ def test_a_failing_run_is_recorded_and_the_others_finish(client, tmp_path):
     ok = status[(6.0, 0.1)]
     assert ok["status"] == "completed" and ok["error"] == ""
     assert "SingularMomentError" in status[(1.0, 0.1)]["error"]
-    assert "tools.platen.friction: must be a number >= 0" in status[(6.0, -1)]["error"]
+    # the bad value is named by the --vary that gave it, not by a line of ring.toml
+    assert "SceneError: --vary tools.platen.friction=-1: must be a number >= 0" \
+        in status[(6.0, -1)]["error"]
     assert all(status[k]["status"] == "failed" and not status[k]["completed"]
                for k in [(1.0, 0.1), (6.0, -1), (1.0, -1)])
     # the RKPM run of the sweep equals the same run done directly

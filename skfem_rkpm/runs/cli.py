@@ -2,16 +2,24 @@
 
     skfem-rkpm scenes
     skfem-rkpm run ring [--method rkpm|fem] [--set key=value ...] [--out DIR] [--resume]
-                        [--solver NAME] [--trust-geo]
+                        [--overwrite] [--solver NAME] [--threads N] [--trust-geo]
     mpiexec -n 2 skfem-rkpm run ring --solver petsc
-    skfem-rkpm compare ring [--set key=value ...] [--out DIR] [--trust-geo]
+    skfem-rkpm compare ring [--set key=value ...] [--out DIR] [--overwrite] [--trust-geo]
     skfem-rkpm sweep ring --vary key=v1,v2,... [--vary ...] [--set key=value ...]
                [--method rkpm|fem] [--scheduler ADDRESS] [--workers N] [--out DIR]
+               [--overwrite]
 
 A scene is a built-in name (``skfem-rkpm scenes``) or a path to a TOML file.
+Every command runs with one BLAS thread (``--threads N`` for more).  An
+output folder must be missing, empty or a folder this program wrote (its
+manifest ``.skfem-rkpm.json``); a run there removes only the files the
+manifest lists.  ``--overwrite`` also writes into a folder of someone else,
+beside the files there, and still never replaces a file it did not write
+(:class:`~skfem_rkpm.runs.folder.RunFolder`).
 """
 
 import argparse
+import contextlib
 import hashlib
 import shlex
 import sys
@@ -58,7 +66,8 @@ def _out(args, path, method, settings, suffix=""):
     return out
 
 
-def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
+def _run_one(path, settings, method, out, resume, quiet, trust_geo=False, overwrite=False):
+    from .folder import RunFolder
     from .runner import build, run, scene_step
 
     scene = load_scene(path, settings)
@@ -80,11 +89,12 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False):
         if ranks > 1 and not scene["steps"]["solver"].startswith("petsc"):
             print(f"note: {ranks} MPI ranks, but the solver {scene['steps']['solver']!r} is "
                   f"not distributed: every rank repeats the whole run (use --solver petsc)")
-    result = run(sim, out, progress=root and not quiet, resume=resume)
+    result = run(sim, out, progress=root and not quiet, resume=resume, overwrite=overwrite)
     if root and scene["output"]["figures"] and result.history:
         from .plot import save_run_figures  # matplotlib: 0.4 s to import
 
-        save_run_figures(sim, result, out)
+        with RunFolder(out, mode="add") as folder:
+            save_run_figures(sim, result, out, folder)
     iterations = sum(r.iterations for r in result.history)
     seconds = sum(r.seconds for r in result.history)
     if root:
@@ -109,9 +119,14 @@ def cmd_run(args):
     method = args.method or load_scene(path, args.set)["model"]["method"]
     out = _out(args, path, method, args.set)
     settings = args.set + ([f"steps.solver={args.solver}"] if args.solver else [])
+    if is_root():  # refused before the work, not after the build
+        from .folder import RunFolder
+
+        RunFolder(out, mode="resume" if args.resume else "new",
+                  overwrite=args.overwrite).check()
     try:
         _, result = _run_one(path, settings, args.method, out, args.resume, args.quiet,
-                             args.trust_geo)
+                             args.trust_geo, args.overwrite)
     except KeyboardInterrupt:
         again = ["skfem-rkpm", "run", args.scene, *(f"--set={s}" for s in settings),
                  *(["--method", args.method] if args.method else []),
@@ -126,21 +141,33 @@ def cmd_run(args):
 def cmd_compare(args):
     from .report import write_comparison
 
+    from .folder import RunFolder
+
     path = _scene_path(args.scene)
     out = _out(args, path, None, args.set, "-compare")
     runs = {}
-    try:
-        for method in ("rkpm", "fem"):
-            runs[method] = _run_one(path, args.set, method, out / method, False,
-                                    args.quiet, args.trust_geo)
-    except KeyboardInterrupt:
-        print(f"\ninterrupted: the finished steps are in {out}; compare cannot resume, "
-              f"run it again to start over", file=sys.stderr)
-        return 130
-    failed = [m for m, (_, result) in runs.items() if not result.completed]
-    if not is_root():  # under mpiexec only rank 0 writes and prints
-        return 1 if failed else 0
-    report = write_comparison(runs, out, args.set, str(path))
+    with contextlib.ExitStack() as stack:
+        top = None
+        if is_root():  # under mpiexec only rank 0 writes and prints
+            # the report's folder, held for the whole comparison: its own
+            # files (report.md, compare.png) go, each run clears its own
+            top = stack.enter_context(RunFolder(out, kind="compare",
+                                                overwrite=args.overwrite))
+            for method in ("rkpm", "fem"):  # refused before the work
+                RunFolder(out / method, overwrite=args.overwrite).check()
+            top.clear()
+        try:
+            for method in ("rkpm", "fem"):
+                runs[method] = _run_one(path, args.set, method, out / method, False,
+                                        args.quiet, args.trust_geo, args.overwrite)
+        except KeyboardInterrupt:
+            print(f"\ninterrupted: the finished steps are in {out}; compare cannot "
+                  f"resume, run it again to start over", file=sys.stderr)
+            return 130
+        failed = [m for m, (_, result) in runs.items() if not result.completed]
+        if top is None:
+            return 1 if failed else 0
+        report = write_comparison(runs, out, args.set, str(path), folder=top)
     print(f"report: {report}")
     if failed:
         print(f"not completed: {', '.join(failed)}", file=sys.stderr)
@@ -154,10 +181,39 @@ def cmd_sweep(args):
     vary = dict(parse_vary(option) for option in args.vary)
     out = _out(args, path, None, args.set, "-sweep")
     records = run_sweep(path, vary, args.set, args.method, out, args.scheduler,
-                        args.workers, progress=not args.quiet)
+                        args.workers, progress=not args.quiet, overwrite=args.overwrite,
+                        threads=args.threads)
     bad = [r for r in records if r["status"] != "completed"]
     print(f"{len(records) - len(bad)} of {len(records)} runs completed -> {out / 'sweep.csv'}")
     return 1 if bad else 0
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number >= 1")
+    return value
+
+
+def _folder_options(p, kind):
+    """``--overwrite`` and ``--threads`` of run, compare and sweep."""
+    names = {"run": "history.csv, scene.toml, fields/step-*.h5, the figures",
+             "compare": "report.md, compare.png; the runs' files in rkpm/ and fem/",
+             "sweep": "sweep.csv"}[kind]
+    p.add_argument("--overwrite", action="store_true",
+                   help="write into a folder that is neither empty nor one skfem-rkpm "
+                        "wrote: the program's files go beside the files there, which "
+                        "are never changed or removed; a file there at a name the "
+                        f"program writes ({names}) is refused even so.  A folder "
+                        "skfem-rkpm wrote needs no --overwrite: its .skfem-rkpm.json "
+                        "lists the program's files, and only those are replaced")
+    p.add_argument("--threads", type=_positive_int, default=1, metavar="N",
+                   help="BLAS threads" + (" of every run" if kind == "sweep" else "")
+                        + " (default 1: the many small dense solves of a run are "
+                          "slower spread over threads)")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -185,6 +241,7 @@ def main(argv=None):
                                       "output folder (default results/SCENE-compare)")
                        + "; with --set a hash of the settings is added")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
+        _folder_options(p, name)
         p.add_argument("--trust-geo", action="store_true",
                        help="let the scene's gmsh .geo file run programs or read and "
                             "write other files (refused otherwise)")
@@ -216,11 +273,17 @@ def main(argv=None):
     p.add_argument("--out", help="sweep folder (default results/SCENE-sweep; with --set a "
                                  "hash of the settings is added)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    _folder_options(p, "sweep")
     p.set_defaults(func=cmd_sweep)
     args = parser.parse_args(argv)
     shown, warnings.showwarning = warnings.showwarning, _show_warning
     try:
-        return args.func(args)
+        if not hasattr(args, "threads"):  # skfem-rkpm scenes
+            return args.func(args)
+        from .runner import blas_threads
+
+        with blas_threads(args.threads):
+            return args.func(args)
     except (ValueError, ImportError) as err:
         # SceneError, the library's checks of the input, the run folder and
         # checkpoint checks, a linear solver whose package is missing

@@ -25,7 +25,7 @@ import numpy as np
 from skfem.io.meshio import HEX_MAPPING
 
 from ..solvers.newton import StepRecord
-from .folder import atomic_path, open_append, write_atomic
+from .folder import FolderError, atomic_path, open_append, write_atomic
 
 __all__ = ["nodal_displacements", "corner_jacobians", "xdmf_cells", "cell_averages",
            "nodal_plastic_strain",
@@ -274,13 +274,23 @@ class FieldWriter:
         Continue an existing series (to resume a run): keep its steps up to
         this step number, delete later ones (written after the checkpoint
         the run resumes from).  By default a new series is started.
+    owner : RunFolder, optional
+        The run folder: every file is entered in its manifest before it is
+        written (:meth:`~skfem_rkpm.runs.folder.RunFolder.claim`), and only
+        files it lists are deleted.
 
     It is also a context manager (nothing to close: every write is complete).
     """
 
-    def __init__(self, path, problem, keep_until=None):
+    def __init__(self, path, problem, keep_until=None, owner=None):
         self.path = Path(path)
         self.folder = self.path.with_suffix("")
+        self.owner = owner
+        if self.folder.is_symlink():
+            raise FolderError(f"{self.folder} is a symbolic link: a run writes only its "
+                              f"own files; remove the link")
+        if not self.folder.exists():
+            self._claim(self.folder, folder=True)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.problem = problem
         # nodal integration: the material points are the particles (vertices),
@@ -296,6 +306,7 @@ class FieldWriter:
         if keep_until is None or not (self.folder / "mesh.h5").exists():
             points = np.zeros((mesh.nvertices, 3))
             points[:, : mesh.dim()] = mesh.p.T
+            self._claim(self.folder / "mesh.h5")
             with atomic_path(self.folder / "mesh.h5") as tmp, h5py.File(tmp, "x") as f:
                 f["points"] = points
                 f["cells"] = xdmf_cells(mesh).astype(np.int64)
@@ -307,10 +318,14 @@ class FieldWriter:
     def __exit__(self, *exc):
         return None
 
+    def _claim(self, path, folder=False):
+        if self.owner is not None:
+            self.owner.claim(path, folder=folder)
+
     def _keep(self, last):
         for file in sorted(self.folder.glob("step-*.h5")):
             match = re.fullmatch(r"step-(\d+)\.h5", file.name)
-            if match is None:
+            if match is None or (self.owner is not None and not self.owner.owns(file)):
                 continue
             step = int(match.group(1))
             if step > last:
@@ -334,6 +349,7 @@ class FieldWriter:
                 for key, shape in shapes.items())
             parts.append(_XDMF_STEP.format(step=step, t=float(t), attributes=attributes))
         parts.append(_XDMF_TAIL)
+        self._claim(self.path)
         write_atomic(self.path, "".join(parts))
 
     def write(self, t, d, evaluation=None, step=None, fields=None):
@@ -361,6 +377,7 @@ class FieldWriter:
             fields = {key: cell_averages(value, dx) for key, value in fields.items()}
         data = {"displacement": u, **fields}
         name = f"step-{step:06d}.h5"
+        self._claim(self.folder / name)
         with atomic_path(self.folder / name) as tmp, h5py.File(tmp, "x") as f:
             f.attrs["t"] = float(t)
             for key, value in data.items():

@@ -5,12 +5,15 @@ and, for a ring scene, the inner-diameter change against the height
 reduction (``calibration.png``).  Axes carry the scene's units
 (``model.length_unit``, ``model.force_unit``)."""
 
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .folder import atomic_path  # noqa: E402
 from .io import nodal_displacements, nodal_plastic_strain  # noqa: E402
 from .plot3d import figures_3d, plot_section  # noqa: E402
 
@@ -133,12 +136,17 @@ def force_axis_label(scene):
     return f"force on the part ({scene['model']['force_unit']}{full})"
 
 
-def save_run_figures(sim, result, out):
+def save_run_figures(sim, result, out, folder=None):
     """``deformed.png``, ``forces.png`` and, for a scene that follows the
     point ``inner_mid`` with a moving tool (the ring), ``calibration.png``
-    of one run in folder ``out`` (:func:`run_figures`)."""
+    of one run in folder ``out`` (:func:`run_figures`), each written
+    atomically; ``folder``: the :class:`~skfem_rkpm.runs.folder.RunFolder`
+    of ``out``, whose manifest lists them before they are written."""
     for name, fig in run_figures(sim, result).items():
-        fig.savefig(out / name, dpi=120, bbox_inches="tight")
+        if folder is not None:
+            folder.claim(name)
+        with atomic_path(Path(out) / name) as tmp:
+            fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
         plt.close(fig)
 
 

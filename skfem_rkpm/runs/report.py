@@ -1,11 +1,14 @@
 """Side-by-side report of RKPM and FEM runs of one scene."""
 
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .folder import atomic_path, write_atomic  # noqa: E402
 from .plot import (force_axis_label, force_label, friction_text, height_reduction,  # noqa: E402
                    inner_diameter_change, plot_deformed, plot_history)
 
@@ -56,10 +59,15 @@ def _settings(runs, source, settings):
     return lines
 
 
-def write_comparison(runs, out, settings=(), source=None):
+def write_comparison(runs, out, settings=(), source=None, folder=None):
     """Write ``report.md`` and ``compare.png`` for ``{method: (sim, result)}``;
     ``settings`` (the ``--set`` strings) and ``source`` (the scene) go into
-    the report's settings."""
+    the report's settings.  Both are written atomically; ``folder``: the
+    :class:`~skfem_rkpm.runs.folder.RunFolder` of ``out`` (kind
+    ``compare``), whose manifest lists them before they are written."""
+    out = Path(out)
+    if folder is not None:
+        folder.claim("report.md", "compare.png")
     summaries = {m: _summary(*runs[m]) for m in runs}
     keys = list(dict.fromkeys(k for s in summaries.values() for k in s))
     lines = ["# RKPM vs FEM", "", *_settings(runs, source, settings), "## Results", "",
@@ -96,8 +104,7 @@ def write_comparison(runs, out, settings=(), source=None):
     ax.set_ylabel(force_axis_label(sim.scene))
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
     ax.legend(fontsize=8)
-    fig.savefig(out / "compare.png", dpi=110, bbox_inches="tight")
+    with atomic_path(out / "compare.png") as tmp:
+        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
-    report = out / "report.md"
-    report.write_text("\n".join(lines))
-    return report
+    return write_atomic(out / "report.md", "\n".join(lines))

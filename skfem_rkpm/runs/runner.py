@@ -3,8 +3,9 @@
 :func:`~skfem_rkpm.runs.build.build` turns a scene into library objects;
 :func:`run` drives them with :func:`~skfem_rkpm.solvers.newton.newton_steps`.
 A run owns its folder (:class:`~skfem_rkpm.runs.folder.RunFolder`: a lock,
-the outputs of an earlier run removed, ``status.txt`` "running" until it
-ends, the resolved scene as ``scene.toml``) and after every converged step
+a manifest of the files it writes, the files of an earlier run removed and
+no other, a folder of someone else refused, ``status.txt`` "running" until
+it ends, the resolved scene as ``scene.toml``) and after every converged step
 appends to ``history.csv`` and ``history.jsonl``, writes the step's fields
 and replaces ``checkpoint.npz``: a run stopped at any moment (Ctrl-C,
 SIGTERM, SIGKILL) keeps every step it finished, and ``resume=True``
@@ -32,12 +33,15 @@ from ..solvers.partitioned import DistributedLU
 from ..solvers.petsc import is_root
 from .build import Simulation, build
 from .checkpoint import load_checkpoint, run_identity, save_checkpoint
-from .folder import RunFolder, open_append, write_atomic
+from .folder import RunFolder, open_append
 from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
                  nodal_displacements, record_from_json, record_to_json)
 
 __all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text",
-           "final_state_message"]
+           "final_state_message", "blas_threads"]
+
+#: environment variables read by BLAS libraries loaded later (a solver's own)
+BLAS_ENV = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 #: linear solvers that partition the rows by the dof locations
 DISTRIBUTED = ("petsc", "petsc-gamg")
@@ -80,7 +84,10 @@ class Progress:
     shown is the scene's (``step 7/100``), also when a step is solved in
     sub-steps; without ``count``, the solver's step counter."""
 
-    def __init__(self, stream=sys.stderr, enabled=True, count=None):
+    def __init__(self, stream=None, enabled=True, count=None):
+        # the standard error of now (a default bound at import would keep a
+        # stream that may have been replaced and closed since)
+        stream = sys.stderr if stream is None else stream
         self.stream, self.enabled, self.count = stream, enabled, count
         self.start = time.perf_counter()
         self.live = bool(getattr(stream, "isatty", lambda: False)())
@@ -110,15 +117,18 @@ class Progress:
             self.stream.write("\n")
 
 
-def run(sim, out=None, progress=True, resume=False, log=None):
+def run(sim, out=None, progress=True, resume=False, log=None, overwrite=False):
     """Run a simulation; with ``out`` write results there step by step.
 
     Parameters
     ----------
     sim : Simulation
     out : str or Path, optional
-        Output folder.  A new run removes what an earlier run left there; a
-        folder in use by another run is refused (a ``FolderError``).
+        Output folder.  A new run removes the files an earlier run wrote
+        there (those its manifest lists) and no others; a folder in use by
+        another run, a symbolic link, or a folder that is neither empty nor a
+        run folder is refused (a ``FolderError``; see
+        :class:`~skfem_rkpm.runs.folder.RunFolder`).
     progress : bool
         Show the progress line.
     resume : bool
@@ -127,6 +137,10 @@ def run(sim, out=None, progress=True, resume=False, log=None):
         checkpoint; the history and the fields continue the same files.
     log : callable, optional
         Newton's log (one line per iteration and step).
+    overwrite : bool
+        Also write into a folder that is neither empty nor a run folder: the
+        run's files go beside the ones there; a file there at a name the run
+        writes is still refused.
 
     Returns
     -------
@@ -144,7 +158,8 @@ def run(sim, out=None, progress=True, resume=False, log=None):
     with contextlib.ExitStack() as stack:
         folder = None
         if out is not None and is_root():  # under mpiexec only rank 0 writes
-            folder = stack.enter_context(RunFolder(out))
+            folder = stack.enter_context(RunFolder(
+                out, mode="resume" if resume else "new", overwrite=overwrite))
             folder.remove_temporaries()
         start = _Start(StepperState(), None, [], [])
         identity = run_identity(sim) if out is not None else None
@@ -156,9 +171,9 @@ def run(sim, out=None, progress=True, resume=False, log=None):
         writer = None
         if folder is not None:
             folder.status(f"running (process {os.getpid()})")
-            write_atomic(out / "scene.toml", scene_text(sim))
+            folder.write("scene.toml", scene_text(sim))
             writer = stack.enter_context(_StepWriter(
-                sim, out, identity, start.stepper.step if resume else None))
+                sim, folder, identity, start.stepper.step if resume else None))
         interrupts = stack.enter_context(_Interrupts())
         try:
             return _run_steps(sim, start, writer, folder, interrupts, progress, log, solver,
@@ -186,16 +201,21 @@ class _StepWriter:
     ``history.jsonl``, the step's fields, then ``checkpoint.npz``, the commit
     point (a resume cuts off what a killed run wrote after it).
 
-    ``keep_until``: continue the files of a resumed run, whose checkpoint
-    is at that step (None: start new ones)."""
+    ``folder``: the :class:`~skfem_rkpm.runs.folder.RunFolder`, whose
+    manifest lists every file before it is written; ``keep_until``: continue
+    the files of a resumed run, whose checkpoint is at that step (None:
+    start new ones)."""
 
-    def __init__(self, sim, out, identity, keep_until=None):
+    def __init__(self, sim, folder, identity, keep_until=None):
+        out = folder.path
         self.sim, self.out, self.identity = sim, out, identity
+        folder.claim("history.csv", "history.jsonl", "checkpoint.npz")
         self.csv = HistoryFile(out / "history.csv", resume=keep_until is not None)
         self.records = open_append(out / "history.jsonl", encoding="utf-8")
         self.fields = None
         if sim.scene["output"]["fields"]:
-            self.fields = FieldWriter(out / "fields.xdmf", sim.problem, keep_until)
+            self.fields = FieldWriter(out / "fields.xdmf", sim.problem, keep_until,
+                                      owner=folder)
 
     def __enter__(self):
         return self
@@ -384,3 +404,32 @@ def _linear_solver(sim):
     if name in DISTRIBUTED:
         return make_solver(name, points=sim.basis.doflocs)
     return make_solver(name)
+
+
+@contextlib.contextmanager
+def blas_threads(count=1):
+    """Limit the BLAS libraries to ``count`` threads for the block.
+
+    A run solves many small dense systems (the moment matrices, Eq. 2.33);
+    threads that spin on them cost CPU time and gain none (``skfem-rkpm run
+    ring`` on 2 shared cores, load 5-7: 28.5 s CPU with two threads,
+    OpenBLAS's default there, 8.4 s with one; medians of 3).
+    The loaded libraries are limited with threadpoolctl; a library loaded
+    inside the block (the MKL of PARDISO, cvxopt's OpenBLAS) reads
+    ``OPENBLAS_NUM_THREADS`` and ``MKL_NUM_THREADS``, set for the block.
+    """
+    from threadpoolctl import threadpool_limits
+
+    if int(count) < 1:
+        raise ValueError(f"--threads {count}: give a number of threads >= 1")
+    saved = {name: os.environ.get(name) for name in BLAS_ENV}
+    os.environ.update({name: str(int(count)) for name in BLAS_ENV})
+    try:
+        with threadpool_limits(limits=int(count), user_api="blas"):
+            yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value

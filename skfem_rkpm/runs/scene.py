@@ -27,6 +27,7 @@ from .scene_values import (COMPONENTS, HISTORY, Key, SceneError, _angle_span, _a
                            _triple, _vector_history)
 
 __all__ = ["SceneError", "SCHEMA", "load_scene", "parse_scene", "apply_setting",
+           "setting_origins",
            "schema_markdown", "prescribed_components", "mesh_from"]
 
 
@@ -249,17 +250,26 @@ def _check_type(kind, value):
     raise AssertionError(kind)
 
 
-def parse_scene(text, source="<scene>", base=None):
+def parse_scene(text, source="<scene>", base=None, origins=None):
     """Validate the TOML ``text`` of a scene; return the filled-in dict.
+
+    ``origins``: the keys whose values came from elsewhere than ``source``
+    (:func:`setting_origins`: ``{"material.E": "--set material.E=nan"}``);
+    a bad value of one of them is reported by its origin, not by a line of
+    ``source``.
 
     Raises
     ------
     SceneError
-        Naming the key, the problem and the line of ``source``.
+        Naming the key, the problem and the line of ``source`` (or the
+        ``--set`` that gave the value).
     """
     lines = _key_lines(text)
+    origins = origins or {}
 
     def fail(path, message):
+        if path in origins:
+            raise SceneError(f"{origins[path]}: {message}")
         where = f"{source}, line {lines[path]}" if path in lines else source
         raise SceneError(f"{where}: {path}: {message}")
 
@@ -363,7 +373,18 @@ def load_scene(path, settings=()):
                          f"{err.start} is {err.object[err.start:err.start + 1]!r})") from None
     for setting in settings:
         text = apply_setting(text, setting)
-    return parse_scene(text, str(path), base=path.parent)
+    return parse_scene(text, str(path), base=path.parent,
+                       origins=setting_origins(settings))
+
+
+def setting_origins(settings, flag="--set"):
+    """``{dotted key: "--set KEY=VALUE"}`` of ``"KEY=VALUE"`` settings, the
+    user's own text (the last one of a key wins, as in :func:`load_scene`)."""
+    origins = {}
+    for setting in settings:
+        key = setting.split("=", 1)[0].strip().replace('"', "").replace(" ", "")
+        origins[key] = f"{flag} {setting.strip()}"
+    return origins
 
 
 def apply_setting(text, setting):

@@ -22,6 +22,7 @@ file system).  Scripts that start a local cluster need the
 
 import csv
 import hashlib
+import io
 import itertools
 import json
 import os
@@ -30,7 +31,8 @@ import time
 import tomllib
 from pathlib import Path
 
-from .scene import SceneError, apply_setting, parse_scene
+from .folder import SWEEP_RUN, FolderError, RunFolder, read_manifest
+from .scene import SceneError, apply_setting, parse_scene, setting_origins
 
 __all__ = ["SweepError", "parse_vary", "split_values", "cases", "resolve_text",
            "scene_key", "run_case", "run_sweep", "SweepProgress", "WORKER_ENV"]
@@ -175,31 +177,41 @@ def _final_row(path):
     return {k: float(v) for k, v in rows[-1].items() if k not in _BOOKKEEPING and v != ""}
 
 
-def run_case(text, source, base, run_dir, params):
+def run_case(text, source, base, run_dir, params, origins=None, threads=1):
     """Run one scene (its resolved TOML ``text``) into ``run_dir``; never raises.
 
     This is the task a worker executes.  Writes ``scene.toml``, the runner's
-    output and ``result.json``; returns the record of ``sweep.csv``: the
-    parameters, ``status`` (completed, incomplete or failed), ``completed``,
-    ``steps``, ``newton iterations``, ``wall time``, ``message``, ``error``
-    and the last row of the history (tool forces, gauges).
+    output and ``result.json`` into a run folder
+    (:class:`~skfem_rkpm.runs.folder.RunFolder`: a folder of someone else at
+    that name is refused, and the run recorded as failed); returns the record
+    of ``sweep.csv``: the parameters, ``status`` (completed, incomplete or
+    failed), ``completed``, ``steps``, ``newton iterations``, ``wall time``,
+    ``message``, ``error`` and the last row of the history (tool forces,
+    gauges).  ``origins``: where a scene value came from (``{key: "--vary
+    key=value"}``, for the error messages); ``threads``: BLAS threads of the
+    run, in whatever process it runs.
     """
+    from .folder import RunFolder
     from .plot import save_run_figures
-    from .runner import build, run
+    from .runner import blas_threads, build, run
 
     run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "result.json").unlink(missing_ok=True)
-    (run_dir / "scene.toml").write_text(text)
     record = dict(params, run=run_dir.name, status="failed", completed=False, steps=0,
                   **{"newton iterations": 0, "wall time": 0.0}, message="", error="")
     start = time.perf_counter()
+    ours = False
     try:
-        scene = parse_scene(text, source, base)
-        sim = build(scene)
-        result = run(sim, run_dir, progress=False)
+        with RunFolder(run_dir, writes=SWEEP_RUN) as folder:  # kept if the build fails
+            folder.clear()
+            folder.write("scene.toml", text)
+        ours = True
+        scene = parse_scene(text, source, base, origins)
+        with blas_threads(threads):
+            sim = build(scene)
+            result = run(sim, run_dir, progress=False)
         if scene["output"]["figures"] and result.history:
-            save_run_figures(sim, result, run_dir)
+            with RunFolder(run_dir, mode="add", writes=SWEEP_RUN) as folder:
+                save_run_figures(sim, result, run_dir, folder)
         record.update(status="completed" if result.completed else "incomplete",
                       completed=bool(result.completed), steps=len(result.history),
                       message=result.message)
@@ -209,10 +221,14 @@ def run_case(text, source, base, run_dir, params):
     except Exception as err:  # a failed run is a result of the sweep
         record["error"] = f"{type(err).__name__}: {err}"
     record["wall time"] = time.perf_counter() - start
+    if not ours:  # a folder of someone else: nothing of it is read or written
+        return record
     record.update(_final_row(run_dir / "history.csv"))
-    tmp = run_dir / "result.json.tmp"
-    tmp.write_text(json.dumps(record, indent=1))
-    tmp.replace(run_dir / "result.json")
+    try:
+        with RunFolder(run_dir, mode="add", writes=SWEEP_RUN) as folder:
+            folder.write("result.json", json.dumps(record, indent=1))
+    except Exception as err:  # a result that cannot be kept is still a result
+        record["error"] = record["error"] or f"{type(err).__name__}: {err}"
     return record
 
 
@@ -289,8 +305,9 @@ def _require_dask():
                          "installed; install it with: pip install skfem-rkpm[dask]") from None
 
 
-def _client(scheduler, workers):
-    """A client of the cluster at ``scheduler``, or of a new LocalCluster."""
+def _client(scheduler, workers, threads=1):
+    """A client of the cluster at ``scheduler``, or of a new LocalCluster
+    (its workers' BLAS libraries start with ``threads`` threads)."""
     import logging
 
     from distributed import Client, LocalCluster
@@ -299,20 +316,41 @@ def _client(scheduler, workers):
         return Client(scheduler), None
     n = workers or os.cpu_count() or 1
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", env=dict(WORKER_ENV),
+                           dashboard_address=":0",
+                           env=dict(WORKER_ENV, **{k: str(threads) for k in WORKER_ENV
+                                                   if k.endswith("_NUM_THREADS")}),
                            silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
-def _write_table(path, records):
-    """Write ``sweep.csv``: one row per record, columns in first-seen order."""
+def _write_table(folder, records):
+    """Write ``sweep.csv`` of the sweep's ``folder`` (a RunFolder), atomically:
+    one row per record, columns in first-seen order."""
     columns = list(dict.fromkeys(k for r in records for k in r))
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(records)
-    tmp.replace(path)
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns)
+    writer.writeheader()
+    writer.writerows(records)
+    folder.write("sweep.csv", text.getvalue())
+
+
+def _finished(folder):
+    """The record of a run folder's ``result.json``, if the run wrote it and
+    completed (a folder or file of someone else is never read)."""
+    try:
+        manifest = read_manifest(folder)
+    except FolderError:
+        return None
+    path = folder / "result.json"
+    if manifest is None or manifest["kind"] != "run" or "result.json" not in \
+            manifest["files"] or path.is_symlink() or not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) and record.get("status") == "completed" \
+        else None
 
 
 def _running(client, futures):
@@ -327,7 +365,8 @@ def _running(client, futures):
 
 
 def run_sweep(scene_path, vary, settings=(), method=None, out=None, scheduler=None,
-              workers=None, progress=True, stream=None, client=None):
+              workers=None, progress=True, stream=None, client=None, overwrite=False,
+              threads=1):
     """Run every combination of ``vary`` on dask.distributed; return the records.
 
     Parameters
@@ -353,6 +392,13 @@ def run_sweep(scene_path, vary, settings=(), method=None, out=None, scheduler=No
         (default standard error).
     client : distributed.Client, optional
         Use this client (its cluster is left running).
+    overwrite : bool
+        Also use an ``out`` that is neither empty nor a sweep folder (the
+        sweep's files go beside the ones there; a ``sweep.csv`` of someone
+        else is refused even so).  A sweep folder is used again as it is:
+        its finished runs are kept.
+    threads : int
+        BLAS threads of every run (also in the worker processes).
 
     Returns
     -------
@@ -361,16 +407,14 @@ def run_sweep(scene_path, vary, settings=(), method=None, out=None, scheduler=No
         ``skipped`` True when it had finished in an earlier sweep.
     """
     _require_dask()
-    from distributed import as_completed
-
     scene_path = Path(scene_path)
     if not scene_path.exists():
         raise SweepError(f"{scene_path}: no such scene file")
     out = Path(out or f"results/{scene_path.stem}-sweep")
-    out.mkdir(parents=True, exist_ok=True)
     base_settings = list(settings) + ([f"model.method={method}"] if method else [])
     source, base = str(scene_path), str(scene_path.parent.resolve())
     text = scene_path.read_text()
+    common = setting_origins(list(settings), "--set")
 
     plan, jobs = [], {}
     for params in cases(vary):
@@ -378,15 +422,23 @@ def run_sweep(scene_path, vary, settings=(), method=None, out=None, scheduler=No
         name = "run-" + scene_key(resolved, source, base)[:16]
         plan.append(({k: _typed(v) for k, v in params.items()}, name))
         jobs.setdefault(name, (resolved, params))
+    with RunFolder(out, kind="sweep", overwrite=overwrite) as folder:
+        return _sweep(folder, plan, jobs, common, source, base, vary, scheduler, workers,
+                      progress, stream, client, threads)
 
+
+def _sweep(folder, plan, jobs, common, source, base, vary, scheduler, workers, progress,
+           stream, client, threads):
+    """The runs of :func:`run_sweep` in its sweep ``folder`` (held)."""
+    from distributed import as_completed
+
+    out = folder.path
     records, todo = {}, []
-    for name, (resolved, params) in jobs.items():
-        previous = out / name / "result.json"
-        if previous.exists():
-            record = json.loads(previous.read_text())
-            if record.get("status") == "completed":
-                records[name] = dict(record, skipped=True)
-                continue
+    for name in jobs:
+        record = _finished(out / name)
+        if record is not None:
+            records[name] = dict(record, skipped=True)
+            continue
         todo.append(name)
 
     bar = SweepProgress(len(plan), vary, stream, progress)
@@ -394,7 +446,7 @@ def run_sweep(scene_path, vary, settings=(), method=None, out=None, scheduler=No
     def table():
         rows = [dict(params, **{k: v for k, v in records[name].items() if k not in params})
                 for params, name in plan if name in records]
-        _write_table(out / "sweep.csv", rows)
+        _write_table(folder, rows)
         return rows
 
     for params, name in plan:
@@ -404,12 +456,15 @@ def run_sweep(scene_path, vary, settings=(), method=None, out=None, scheduler=No
     if todo:
         own = client is None
         if own:
-            client, cluster = _client(scheduler, workers)
+            client, cluster = _client(scheduler, workers, threads)
         try:
             futures = {client.submit(run_case, jobs[name][0], source, base,
                                      str((out / name).resolve()),
                                      {k: _typed(v) for k, v in jobs[name][1].items()},
-                                     pure=False): name for name in todo}
+                                     dict(common, **setting_origins(
+                                         [f"{k}={v}" for k, v in jobs[name][1].items()],
+                                         "--vary")),
+                                     threads, pure=False): name for name in todo}
             bar.status(_running(client, futures))
             pending = as_completed(futures)
             last = time.perf_counter()

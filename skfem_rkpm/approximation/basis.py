@@ -14,6 +14,7 @@ values: use :meth:`RKBasis.nodal_values` (Eq. 3.32) to read nodal values and
 """
 
 import copy
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
@@ -24,6 +25,8 @@ from .basis_views import CellViews, FacetViews
 from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from .reduction import WHOLE
+from .element_particles import (DEFAULT_INTORDER, DEFAULT_SUPPORT, element_degree,
+                                element_particles, scalar_element)
 from .rk_base import RKBase
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
@@ -127,19 +130,27 @@ class RKBasis(CellViews, RKBase):
         Vector field with ``mesh.dim()`` components (displacements).  A
         scikit-fem element may stand here, as in ``Basis(mesh, element)``:
         ``ElementVector(...)`` gives a vector field, a scalar element a
-        scalar one (the element's polynomial degree is not used; the RK
-        basis order is ``order``).
+        scalar one.  The element's degree is the default ``order``, and a
+        quadratic element (P2, Q2, S2) puts the particles at its dof
+        locations, numbered as its dofs, so that ``N``, ``doflocs`` and
+        ``get_dofs`` equal those of ``Basis(mesh, element)``
+        (:mod:`.element_particles`).
     support : float
         Normalized support ``c``: particle I gets radius ``a_I = c h_I``
-        with ``h_I`` the local nodal spacing (:func:`local_spacing`).
+        with ``h_I`` the local nodal spacing (:func:`local_spacing`; for the
+        particles of a quadratic element, the spacing of its dofs).
+        Default 2, and 2.5 on a quadratic element's dofs (measured:
+        :data:`.element_particles.DEFAULT_SUPPORT`).
     order : int
-        Basis order ``N`` of Eq. (3.18): 0, 1 or 2.
+        Basis order ``N`` of Eq. (3.18): 0, 1 or 2.  Default: the degree of
+        the element given as ``vector``, else 1.
     kernel : str or callable
         Window function, ``"cubic"`` (Eq. 3.12, default) or ``"quartic"``.
     support_shape : {"radial", "box"}
         Circular/spherical or tensor-product supports.
     intorder : int
-        Degree of the Gauss rule on each background cell.
+        Degree of the Gauss rule on each background cell; default 4, and 6
+        on a quadratic element's dofs.
     integration : {"vci", "vci_symmetric", "gauss", "scni", "dni"}
         Default ``"vci"``, and ``"vci_symmetric"`` for an interpolating
         basis of order 1 that is not axisymmetric (:func:`default_integration`).
@@ -197,12 +208,21 @@ class RKBasis(CellViews, RKBase):
         ``integration="vci"`` or ``"gauss"``.
     """
 
-    def __init__(self, mesh, vector=False, support=2.0, order=1, kernel="cubic",
-                 support_shape="radial", intorder=4, integration=None,
+    def __init__(self, mesh, vector=False, support=None, order=None, kernel="cubic",
+                 support_shape="radial", intorder=None, integration=None,
                  nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
                  elements=None, interpolating=False, smoothing="median_dual",
                  reduction=None):
+        element = scalar_element(vector)
         vector = field_is_vector(vector)
+        particles = (element_particles(mesh, element)
+                     if nodes is None and integration not in NODAL_SCHEMES else None)
+        degree = 1 if element is None else element_degree(element)
+        order = degree if order is None else order
+        support = DEFAULT_SUPPORT[degree if particles is not None else 1] \
+            if support is None else support
+        intorder = DEFAULT_INTORDER[degree if particles is not None else 1] \
+            if intorder is None else intorder
         if integration is None:
             integration = default_integration(interpolating, order, axisymmetric)
         if integration not in INTEGRATION_SCHEMES:
@@ -232,7 +252,10 @@ class RKBasis(CellViews, RKBase):
             raise ValueError(f"stabilization={stabilization} needs integration='scni' "
                              f"(not {integration!r})")
         part = _part_cells(mesh, elements, integration, reduction)
-        if nodes is None:
+        self._element_particles = particles
+        if particles is not None:
+            nodes, spacing = particles.nodes, particles.spacing
+        elif nodes is None:
             nodes = coordinates(mesh_vertices(mesh), "mesh vertex")
             spacing = local_spacing(mesh)[:nodes.shape[1]]
         else:
@@ -267,6 +290,13 @@ class RKBasis(CellViews, RKBase):
         _check_distinct(nodes, self.radius)
         self._primitive = basis_primitive_radius(interpolating, nodes, self.radius)
         self.interpolating = self._primitive is not None
+        if self.interpolating and order == 2 and particles is not None:
+            warnings.warn(
+                "interpolating RK functions of order 2 converge more slowly than the "
+                "plain ones: on P2 meshes of the unit square (Poisson) their L2 error "
+                "was 2.9-11x FEM's, against 0.4-0.8x without interpolating=True; drop "
+                "it and prescribe nodal values with skfem_rkpm.condense(..., basis=rk)",
+                stacklevel=2)
         # a too small support is reported as a normalized support only when
         # the radii come from it; explicit radii get a growth factor
         self.dilation = support if from_spacing else None
@@ -467,6 +497,8 @@ class RKBasis(CellViews, RKBase):
     def _boundary_particles(self, facets):
         if callable(facets):
             return np.flatnonzero(facets(self.nodes))
+        if getattr(self, "_element_particles", None) is not None:
+            return self._element_particles.boundary(facets)
         if not self.particles_are_vertices:
             raise ValueError("particles are not the mesh vertices: select them "
                              "with a callable get_dofs(lambda x: ...) or nodes=")

@@ -84,8 +84,12 @@ class _DofIdioms:
     def _dof_array(self, name):
         """scikit-fem's dof arrays: on an interpolating basis (coefficients
         are nodal values) ``nodal_dofs`` (ncomp, nparticles) and empty facet,
-        edge and interior dofs; a :class:`CoefficientsNotNodalError` otherwise."""
+        edge and interior dofs (on a quadratic element's particles, those of
+        its FEM basis); a :class:`CoefficientsNotNodalError` otherwise."""
         if getattr(self, "interpolating", False) and name != "dofs":
+            particles = getattr(getattr(self, "parent", self), "_element_particles", None)
+            if particles is not None:
+                return particles.dof_array(name, self.ncomp)
             if name == "nodal_dofs":
                 return np.arange(self.N).reshape(-1, self.ncomp).T
             return np.zeros((self.ncomp, 0), dtype=np.int64)

@@ -354,7 +354,7 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     ``iterations`` and the residual history count all solves."""
     for c in contributions:
         if hasattr(c, "restart"):
-            c.restart()
+            c.restart(t)
     augmenting = [c for c in contributions if hasattr(c, "augment")]
     reviewing = [c for c in contributions if hasattr(c, "review_status")]
     its = 0

@@ -159,7 +159,11 @@ class ContactState:
     ``pressure`` ``t_n``, ``shear`` ``t_t`` (along the tangent), ``slip``
     and ``active`` (bool), and ``node_gap`` (the nodal gap, or the
     hat-weighted average of the point gaps).  ``force`` (2,) is the force of
-    the master surface on the body.
+    the master surface on the body.  A converged state also keeps its load
+    factor ``t`` and the rates ``pressure_rate``, ``shear_rate`` of the
+    nodal tractions over the step that reached it (zero where a node was
+    not in contact at both ends): the augmented Lagrangian starts the next
+    step's multipliers from them (:meth:`RigidContact.restart`).
     """
 
     x: np.ndarray
@@ -173,6 +177,17 @@ class ContactState:
     slip: np.ndarray
     active: np.ndarray
     force: np.ndarray
+    t: float = 0.0
+    pressure_rate: np.ndarray = None
+    shear_rate: np.ndarray = None
+
+    def __post_init__(self):
+        # plain arrays, also for checkpoints
+        self.t = np.float64(self.t)
+        if self.pressure_rate is None:
+            self.pressure_rate = np.zeros(np.shape(self.pressure))
+        if self.shear_rate is None:
+            self.shear_rate = np.zeros(np.shape(self.shear))
 
     @property
     def penetration(self):

@@ -25,7 +25,7 @@ from .friction import ContactState, coulomb_vector
 from .rigid_contact import (RigidContact, ToolSideError, _check_finite_traction,
                             _touch_fraction)
 
-__all__ = ["SurfaceContact"]
+__all__ = ["SurfaceContact", "symmetry_projection"]
 
 
 def _outer(a, b):
@@ -40,6 +40,45 @@ def _slip_derivative(normal, curvature, slipped):
     along = np.einsum("ni,ni->n", normal, slipped)
     return (P - along[:, None, None] * curvature
             - _outer(normal, np.einsum("nij,nj->ni", curvature, slipped)))
+
+
+def symmetry_projection(mesh, nodes, symmetry, dim=3):
+    """``Q_K`` (m, dim, dim): the projection off the normals of the
+    symmetry planes through each contact node (the identity elsewhere).
+
+    ``nodes`` (m,) are the mesh vertices of the contact nodes,
+    ``symmetry`` pairs ``(boundary, normal)``: a name in ``mesh.boundaries``
+    (or facet indices) and the plane's normal.  Planes that meet at a node
+    at an angle (a wedge's sides) are projected off together,
+    ``Q = I - E (EᵀE)⁻¹ Eᵀ`` with their normals ``E``."""
+    m = len(nodes)
+    on = np.zeros((m, 0), bool)
+    normals = []
+    for boundary, normal in symmetry:
+        n = np.asarray(normal, float).ravel()
+        if n.shape != (dim,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
+            raise ValueError(f"the normal of symmetry plane {boundary!r} must be "
+                             f"{dim} finite numbers, not all zero; got {normal!r}")
+        if isinstance(boundary, str):
+            if boundary not in (mesh.boundaries or {}):
+                raise ValueError(f"symmetry plane {boundary!r}: the mesh has no such "
+                                 f"boundary; it has {sorted(mesh.boundaries or {})}")
+            facets = mesh.boundaries[boundary]
+        else:
+            facets = np.asarray(boundary, dtype=np.int64)
+        vertices = np.unique(mesh.facets[:, facets])
+        on = np.column_stack([on, np.isin(nodes, vertices)])
+        normals.append(n / np.linalg.norm(n))
+    Q = np.broadcast_to(np.eye(dim), (m, dim, dim)).copy()
+    if not normals:
+        return Q
+    E_all = np.array(normals).T  # (dim, planes)
+    keys = on @ (1 << np.arange(on.shape[1]))
+    for key in np.unique(keys[keys > 0]):
+        E = E_all[:, [(key >> k) & 1 == 1 for k in range(on.shape[1])]]
+        # least-squares projection: a rank-deficient E (parallel planes) is fine
+        Q[keys == key] = np.eye(dim) - E @ np.linalg.pinv(E)
+    return Q
 
 
 def _stick_slip_operator(trial, shear, pressure, slip, active, mu):
@@ -59,7 +98,7 @@ def _stick_slip_operator(trial, shear, pressure, slip, active, mu):
     return S, tau
 
 
-def _surface_tangent(coupling, proj, pts, law, slipped, omega_n, omega_t, mu):
+def _surface_tangent(coupling, proj, pts, law, slipped, omega_n, omega_t, mu, Q=None):
     """Consistent tangent ``K = Gᵀ X G`` of the contact force
     ``f = -Gᵀ (w t)`` (the 3D form of Eq. 4.28-4.29), with the blocks
 
@@ -70,7 +109,9 @@ def _surface_tangent(coupling, proj, pts, law, slipped, omega_n, omega_t, mu):
     on pressed nodes (Eq. 4.5), ``A_K = ω_t φ_K S_K / W_K`` and
     ``b_K = (ω_t φ'_K S_K ŝ_K + μ ω_n τ_K [slip]) / W_K`` from the return
     map (Eq. 4.6, ``S = ∂T/∂T*``), ``D_q`` the derivative of the projected
-    slip (:func:`_slip_derivative`) and ``C_p = ∂n/∂x`` at the point.
+    slip (:func:`_slip_derivative`) and ``C_p = ∂n/∂x`` at the point; a
+    node on symmetry planes has ``S_K Q_K`` in ``A_K`` (its slip is
+    ``Q_K ŝ_K``, :func:`symmetry_projection`).
     """
     pressure, shear, slip, active, trial, mean_slip, phi, dphi = law
     normal = proj.normal.T
@@ -81,7 +122,7 @@ def _surface_tangent(coupling, proj, pts, law, slipped, omega_n, omega_t, mu):
               * _outer(normal[p], normal[q]))
     if mu > 0:
         S, tau = _stick_slip_operator(trial, shear, pressure, slip, active, mu)
-        A = (omega_t * phi * inv_W)[:, None, None] * S
+        A = (omega_t * phi * inv_W)[:, None, None] * (S if Q is None else S @ Q)
         b = (omega_t * dphi * inv_W)[:, None] * np.einsum("kij,kj->ki", S, mean_slip)
         if np.isfinite(mu):
             b += (mu * omega_n * (slip & active) * inv_W)[:, None] * tau
@@ -121,7 +162,25 @@ class SurfaceContact(RigidContact):
     tensor ``∂n/∂x``, ``to_body(x, t)`` and ``placement(t)``) and
     ``problem.model == "3d"``.  Tangential tractions are vectors (``shear``
     of the state has shape ``(m, 3)``).
+
+    ``symmetry``: pairs ``(boundary, normal)`` of the model's symmetry
+    planes; contact nodes on them carry no tangential traction along the
+    plane's normal (:func:`symmetry_projection`).
     """
+
+    def __init__(self, problem, tool, *args, symmetry=(), **kwargs):
+        self._symmetry = None
+        self._held_stick = None  # nodes held in stick by sticking() (a linear model)
+        self._linear = None  # (d, t, proj, slipped, law, f, K) of the last evaluation
+        super().__init__(problem, tool, *args, **kwargs)
+        symmetry = list(symmetry or ())
+        if symmetry:
+            if self.points.nodes is None:
+                raise ValueError("symmetry planes need contact nodes at mesh vertices: "
+                                 "collocation 'nodal' or 'quadrature', not 'gauss'")
+            self._symmetry = symmetry_projection(problem.basis.mesh, self.points.nodes,
+                                                 symmetry, self.points.dim)
+            self.restart()
 
     def _check_tool(self, tool, problem):
         """TypeError unless ``tool`` is a 3D surface; ValueError unless the
@@ -155,7 +214,22 @@ class SurfaceContact(RigidContact):
         """``ŝ_K``: hat-weighted averages of the tangential slip ``P Δξ``."""
         along = np.einsum("ni,ni->n", normal, slipped)
         tangential = slipped - along[:, None] * normal
-        return np.stack([self.points.average(c) for c in tangential.T], axis=1)
+        mean = np.stack([self.points.average(c) for c in tangential.T], axis=1)
+        return self._project(mean)
+
+    def _project(self, vectors):
+        """Nodal vectors (m, d) without their parts along the normals of the
+        symmetry planes through the nodes."""
+        if self._symmetry is None:
+            return vectors
+        return np.einsum("kij,kj->ki", self._symmetry, vectors)
+
+    def restart(self, t=None):
+        """As :meth:`RigidContact.restart`; the tangential multipliers of
+        nodes on symmetry planes lie in the planes."""
+        super().restart(t)
+        if getattr(self, "_symmetry", None) is not None:
+            self.multipliers = (self.multipliers[0], self._project(self.multipliers[1]))
 
     def _law(self, proj, slipped):
         """Nodal tractions: ``t_n = ⟨λ_n - ω_n ĝ⟩`` (Eq. 4.5) and the return
@@ -168,6 +242,9 @@ class SurfaceContact(RigidContact):
         phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
         trial = self.multipliers[1] - (self.omega_t * phi)[:, None] * mean_slip
         shear, slip = self._freeze.release(*coulomb_vector(pressure, trial, self.mu))
+        if self._held_stick is not None:  # the stick branch of sticking()'s nodes
+            shear = np.where(self._held_stick[:, None], trial, shear)
+            slip = slip & ~self._held_stick
         law = (pressure, np.where(active[:, None], shear, 0.0), slip & active, active,
                trial, mean_slip, phi, dphi)
         return node_gap, law
@@ -187,20 +264,85 @@ class SurfaceContact(RigidContact):
         _check_finite_traction(traction, pts.X, self.name)
         f = self._coupling.GT @ (-(pts.weights * traction)).T.ravel()
         K = _surface_tangent(self._coupling, proj, pts, law, slipped, self.omega_n,
-                             self.omega_t, self.mu)
+                             self.omega_t, self.mu, self._symmetry)
         self._normals = proj.normal
         self._sticking_slip = law[6][:, None] * law[5]  # φ ŝ: what stick must keep at 0
         size = np.linalg.norm(tangential, axis=0)
         direction = tangential / np.where(size > 0, size, 1.0)
         self.trial = ContactState(x, proj.gap, proj.normal, direction, relative, node_gap,
                                   pressure, shear, law[2], law[3],
-                                  (pts.weights * traction).sum(axis=1))
+                                  (pts.weights * traction).sum(axis=1), t)
+        self._linear = (d, t, proj, slipped, law, f, K)
         return f, K
 
+    def linearized_law(self, delta):
+        """The trial traction ``T*`` (m, d) and the pressure ``λ_n - ω_n ĝ``
+        (m,) of the nodes at ``d + δ`` in the linear model of the last
+        evaluation at ``d``: ``T* - ω_t (φ Q ŝ'δ + φ' ŝ ĝ'δ)`` and
+        ``t_n - ω_n ĝ'δ`` (the pressure of a node in contact; it may turn
+        negative)."""
+        _, _, proj, slipped, law, _, _ = self._linear
+        pressure, trial, mean_slip, phi, dphi = law[0], law[4], law[5], law[6], law[7]
+        pts = self.points
+        u = pts.displacements(delta).T
+        normal = proj.normal.T
+        moved = np.einsum("nij,nj->ni", _slip_derivative(normal, proj.curvature, slipped), u)
+        d_slip = self._project(np.stack([pts.average(c) for c in moved.T], axis=1))
+        d_gap = pts.average(np.einsum("ni,ni->n", normal, u))
+        lin_trial = trial - self.omega_t * (phi[:, None] * d_slip
+                                            + (dphi * d_gap)[:, None] * mean_slip)
+        return lin_trial, pressure - self.omega_n * d_gap
+
+    def sticking(self, delta):
+        """Force and stiffness corrections for the slipping nodes that the
+        update ``delta`` would bring back into stick, in the linear model
+        of the last evaluation (an active-set prediction, like
+        :meth:`~RigidContact.touching` for the normal law).
+
+        A slipping node has no tangential stiffness along its slip: the
+        Newton update moves it along ``τ`` as if it were free, through
+        the stick cone and, where the flow stops or turns, into slip the
+        other way; the line search then finds the zero of its energy
+        slope at the kink and takes a fraction of the update, iteration
+        after iteration (measured on the billet: an edge node reversing
+        its slip held 5-10 iterations of a step at steps 0.3-0.5).  Here
+        the linearized trial ``T*(δ) = T* - ω_t (φ Q ŝ'δ + φ' ŝ ĝ'δ)`` is
+        checked against the linearized cone ``μ (t_n - ω_n ĝ'δ)``: a node
+        that lands inside it, or whose trial turns by more than 90°, takes
+        its stick branch (``T = T*``, Eq. 4.6) in the linear model, and the
+        update is solved again.  The statuses of the next iterate are the
+        law's own: the converged solution is unchanged.
+
+        Returns ``(nodes, f, K)`` (``nodes`` the mask, ``f`` and ``K`` the
+        changes of force and tangent at the last evaluation) or ``None``.
+        """
+        if self._linear is None or not 0.0 < self.mu < np.inf:
+            return None
+        d, t, _, _, law, f0, K0 = self._linear
+        slip, active, trial = law[2], law[3], law[4]
+        candidates = slip & active & ~self._freeze.sliding
+        if not candidates.any():
+            return None
+        lin_trial, lin_pressure = self.linearized_law(delta)
+        inside = np.linalg.norm(lin_trial, axis=1) <= self.mu * np.maximum(lin_pressure, 0.0)
+        turned = np.einsum("ki,ki->k", lin_trial, trial) <= 0.0
+        held = candidates & (inside | turned)
+        if not held.any():
+            return None
+        saved = (self.trial, self._normals, self._sticking_slip, self._linear)
+        self._held_stick = held
+        try:
+            f1, K1 = self.evaluate(d, t)
+        finally:
+            self._held_stick = None
+            self.trial, self._normals, self._sticking_slip, self._linear = saved
+        return held, f1 - f0, (K1 - K0).tocsr()
+
     def violation(self):
-        """Largest penetration of a pressed node, and slip of a sticking node
-        since the last converged step (or since it touched), at the last
-        evaluation, over ``tolerance · h_c`` (converged when ≤ 1)."""
+        """Largest gap of a pressed node (:meth:`RigidContact._misfit`), and
+        slip of a sticking node since the last converged step (or since it
+        touched), at the last evaluation, over ``tolerance · h_c``
+        (converged when ≤ 1)."""
         trial = self.trial
         penetration = self._misfit(trial)
         slip = 0.0

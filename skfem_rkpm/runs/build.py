@@ -238,6 +238,14 @@ def _symmetry_normal(mesh, boundary, name):
     return axis if abs(normal[axis]) > 1.0 - 1e-12 else normal
 
 
+def _symmetry_planes(mesh, scene):
+    """``(boundary, normal)`` of the scene's symmetry planes (``symmetry =
+    true``), for the contact nodes on them (:class:`SurfaceContact`)."""
+    return [(name.split(".", 1)[1], plane_normal(mesh, name.split(".", 1)[1]))
+            for name, section in scene.items()
+            if name.startswith("boundary.") and section.get("symmetry")]
+
+
 def _values(value, name):
     """The ``values`` of a :class:`Prescribed`: a number (reached linearly in
     t, as Prescribed does), or ``(t, x) -> value`` of a table in t."""
@@ -253,7 +261,8 @@ def tool_from_scene(name, section, basis, problem, scene=None):
 
     The tool is :func:`skfem_rkpm.runs.scene_tools.tool_from`; ``friction``, ``slaves``,
     ``penalty``, ``penalty_factor`` (``factor``), ``collocation``,
-    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`.  With
+    ``enforcement`` and ``tolerance`` as in :class:`RigidContact`; in 3D the
+    scene's symmetry planes go to :class:`SurfaceContact` (``symmetry``).  With
     ``force`` the tool is driven by its push along ``direction`` (default
     the platen's normal): a :class:`ForceDrivenContact`.
     """
@@ -262,6 +271,9 @@ def tool_from_scene(name, section, basis, problem, scene=None):
     if problem.basis is not basis:
         raise ValueError("the basis must be the problem's basis")
     factor = section.get("penalty_factor")
+    extra = {}
+    if dim == 3:  # contact nodes on symmetry planes: no shear across them
+        extra["symmetry"] = _symmetry_planes(basis.mesh, scene or {})
     try:
         contact = (SurfaceContact if dim == 3 else RigidContact)(
                                problem, tool, section.get("slaves"),
@@ -270,7 +282,7 @@ def tool_from_scene(name, section, basis, problem, scene=None):
                                factor=DEFAULT_PENALTY_FACTOR if factor is None else factor,
                                enforcement=section.get("enforcement") or "penalty",
                                tolerance=(section.get("tolerance")
-                                          or DEFAULT_AUGMENTED_TOLERANCE))
+                                          or DEFAULT_AUGMENTED_TOLERANCE), **extra)
     except ToolSideError as err:
         raise SceneError(f"the {err.what} of tools.{name} {err.fix} ({err.detail})") from None
     if section.get("force") is None:

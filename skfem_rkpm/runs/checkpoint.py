@@ -177,8 +177,12 @@ def load_checkpoint(folder, sim, identity):
     for k, tool in enumerate(sim.tools):
         cls = type(tool.get_state())
         try:
+            # a field with a default may be missing (a checkpoint written
+            # before the field existed: the contact rates start at 0)
             state = cls(**{f.name: arrays[f"tool{k}.{f.name}"]
-                           for f in dataclasses.fields(cls)})
+                           for f in dataclasses.fields(cls)
+                           if f"tool{k}.{f.name}" in arrays
+                           or f.default is dataclasses.MISSING})
             tool.set_state(state)
         except (KeyError, ValueError) as err:
             raise CheckpointError(f"{path}: the state of tool {k} does not fit ({err}); "

@@ -354,7 +354,7 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     ``iterations`` and the residual history count all solves."""
     for c in contributions:
         if hasattr(c, "restart"):
-            c.restart()
+            c.restart(t)
     augmenting = [c for c in contributions if hasattr(c, "augment")]
     reviewing = [c for c in contributions if hasattr(c, "review_status")]
     its = 0
@@ -460,7 +460,8 @@ def _watch_status(contributions, log):
 
 
 def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
-    """Newton update ``δ`` with the contact nodes it brings into touch.
+    """Newton update ``δ`` with the contact nodes it brings into touch (and,
+    through ``sticking(δ)``, the slipping nodes it brings back into stick).
 
     A contribution with a ``touching(δ)`` method (rigid contact) reports
     the nodes that ``δ`` would push into the tool although they are apart
@@ -474,10 +475,11 @@ def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
     if not np.all(np.isfinite(delta)):
         raise NonFiniteError("the Newton update is not finite (a singular tangent?)",
                              np.flatnonzero(~np.isfinite(delta)))
-    touching = [c for c in contributions if hasattr(c, "touching")]
+    predictions = [getattr(c, name) for c in contributions
+                   for name in ("touching", "sticking") if hasattr(c, name)]
     previous = None
     for _ in range(rounds):
-        found = [c.touching(delta) for c in touching]
+        found = [predict(delta) for predict in predictions]
         found = [x for x in found if x is not None]
         key = [x[0].tobytes() for x in found]
         if not found or key == previous:

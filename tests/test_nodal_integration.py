@@ -18,6 +18,8 @@ from skfem_rkpm.solvers.newton import Prescribed, newton_steps
 from test_patch import linear_field, rk_error
 from test_plasticity import LAWS, E, NU, plane_strain_reference, uniaxial_exact
 
+from _roundoff import sum_bound
+
 C = isotropic_tangent(E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU)), 2)
 
 
@@ -101,6 +103,28 @@ def integration_constraint(basis):
     grads = np.stack([basis.table.gradient_matrix(k) @ basis.mesh.p.T for k in range(dim)],
                      axis=1)
     return lhs, rhs, grads
+
+
+def integration_constraint_bounds(basis):
+    """Round-off bounds (tests/_roundoff.py) of :func:`integration_constraint`:
+    of ``lhs - rhs``, the sums of the terms ``|b_I(X_L)| A_L`` and ``|Ψ_I n
+    dΓ|``, and of the gradients of ``x``, the sums of ``|∇̃Ψ_I| |x_I|`` (each
+    with as many ε as it has terms)."""
+    dim = basis.mesh.dim()
+    A = basis.dx[:, 0]
+    table = basis.table
+    lhs = np.stack([np.bincount(table.indices, np.abs(table.grads[k] * A[table.rows]),
+                                minlength=basis.nnodes) for k in range(dim)])
+    fb = basis.boundary()
+    w = np.abs(fb.dx[None] * fb.geometry.normals).reshape(dim, -1)
+    values = abs(fb.table.matrix()).tocsc()
+    rhs = np.stack([values.T @ w[k] for k in range(dim)])
+    constraint = (sum_bound(lhs, np.bincount(table.indices).max())
+                  + sum_bound(rhs, np.diff(values.indptr).max()))
+    gradients = [abs(table.gradient_matrix(k)).tocsr() for k in range(dim)]
+    grads = np.stack([sum_bound(g @ np.abs(basis.mesh.p.T), np.diff(g.indptr).max())
+                      for g in gradients], axis=1)
+    return constraint, grads
 
 
 @pytest.mark.parametrize("mesh", ["distorted_quads", "distorted_tris"])

@@ -83,6 +83,7 @@ def linear_field(x):
 STRESS = LAM * np.trace(GRADIENT) * np.eye(3) + MU * (GRADIENT + GRADIENT.T)
 
 
+@pytest.mark.roundoff
 @pytest.mark.parametrize("name", ["uniform_tets", "distorted_tets", "gmsh_tets",
                                   "distorted_hexes"])
 def test_smoothing_cells_tile_the_domain_and_close(name, request):
@@ -129,6 +130,7 @@ def test_smoothing_cells_tile_the_domain_and_close(name, request):
                                 + cells.cell_area, count))
 
 
+@pytest.mark.roundoff
 @pytest.mark.parametrize("name", ["distorted_tets", "gmsh_tets", "distorted_hexes"])
 def test_smoothed_gradients_meet_the_integration_constraint(name, request):
     """Σ_L V_L b_I(X_L) = ∮_Γ Ψ_I n dΓ, the right side from the facet basis
@@ -200,6 +202,7 @@ def assert_patch_round_off(errors, bounds):
         assert error < bound, f"{name}: error {error:.3g} above the round-off bound {bound:.3g}"
 
 
+@pytest.mark.roundoff
 @pytest.mark.parametrize("name", ["distorted_tets", "gmsh_tets", "distorted_hexes"])
 @pytest.mark.parametrize("support", [1.5, 2.5])
 def test_linear_patch_scni_round_off(name, support, request):
@@ -217,6 +220,7 @@ def test_linear_patch_scni_round_off(name, support, request):
     assert_patch_round_off(errors, bounds)
 
 
+@pytest.mark.roundoff
 def test_linear_patch_scni_with_the_field_prescribed_on_the_boundary():
     """The linear field prescribed weakly on the three faces at the origin
     (boundary multipliers, piecewise linear on each face, integrated with the
@@ -271,6 +275,7 @@ def test_linear_patch_dni_fails(name, request):
     assert np.all(np.array([err, gerr, serr]) > 1e4 * np.array(bounds))
 
 
+@pytest.mark.roundoff
 def test_stabilization_vanishes_on_linear_fields():
     m = perturbed_cube(MeshTet, n=3, amplitude=0.3)
     basis = RKBasis(m, vector=True, support=2.0, integration="scni", stabilization=1.0)
@@ -284,6 +289,7 @@ def test_stabilization_vanishes_on_linear_fields():
     assert unstabilized.nodal_quadrature.jumps is None  # no piece gradients built
 
 
+@pytest.mark.roundoff
 @pytest.mark.parametrize("kind", ["tet", "hex"])
 def test_free_block_has_six_zero_modes(kind):
     """A free block of 5 x 5 x 5 particles, support 1.5, linear elasticity:
@@ -375,6 +381,7 @@ def test_degenerate_cells_are_named():
         smoothing_cells(mesh)
 
 
+@pytest.mark.roundoff
 @pytest.mark.parametrize("model", ["3d", "plane_strain", "axisymmetric"])
 def test_tangent_moduli_of_the_virgin_state_are_the_elastic_ones(model):
     """At the undeformed state the material tangent is the elastic moduli

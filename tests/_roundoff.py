@@ -72,11 +72,6 @@ def solve_bound(A, x, b=None, rows=None, factor=FACTOR):
         inf_norm(A) * float(np.abs(x).max()) + bnorm)
 
 
-def condition(A):
-    """κ∞(A) = ‖A‖∞ ‖A⁻¹‖∞."""
-    return inf_norm(A) * inverse_norm(A)
-
-
 def sum_bound(magnitude, count):
     """Round-off of a sum of ``count`` terms whose absolute values add up
     to ``magnitude``: a recursive sum (``np.bincount``, sparse products, a
@@ -129,3 +124,12 @@ def assert_within(actual, expected, bound):
     assert not ratio.size or ratio[worst] <= 1.0, (
         f"entry {tuple(int(i) for i in worst)}: error {error[worst]:.3g} is "
         f"{ratio[worst]:.3g} times the round-off bound {bound[worst]:.3g}")
+
+
+def assert_errors_within(errors, bounds, names):
+    """Each named error below its bound (with ``ROUNDOFF_REPORT`` set, print
+    the fraction of the bound each error reaches)."""
+    for name, error, bound in zip(names, errors, bounds):
+        if os.environ.get("ROUNDOFF_REPORT"):
+            print(f"\nround-off: error {error / bound:.3g} of the bound {bound:.3g} ({name})")
+        assert error < bound, f"{name}: error {error:.3g} above the round-off bound {bound:.3g}"

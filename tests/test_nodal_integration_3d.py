@@ -26,7 +26,8 @@ from test_basis_3d import perturbed_cube
 from test_nodal_integration import integration_constraint, integration_constraint_bounds
 from test_plasticity import LAWS, E, NU
 
-from _roundoff import EPS, assert_within, constrained_solve_bound, field_bounds, sum_bound
+from _roundoff import (EPS, assert_errors_within, assert_within, constrained_solve_bound,
+                       field_bounds, sum_bound)
 
 LAM, MU = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))
 C = isotropic_tangent(LAM, MU, 3)
@@ -198,8 +199,7 @@ def patch_bounds(basis, coefficient_error, d):
 
 
 def assert_patch_round_off(errors, bounds):
-    for name, error, bound in zip(("u", "grad u", "stress"), errors, bounds):
-        assert error < bound, f"{name}: error {error:.3g} above the round-off bound {bound:.3g}"
+    assert_errors_within(errors, bounds, ("u", "grad u", "stress"))
 
 
 @pytest.mark.roundoff

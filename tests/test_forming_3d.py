@@ -21,23 +21,35 @@ def run(tmp_path, scene, method, settings):
         return list(csv.DictReader(handle)), (out / "status.txt").read_text()
 
 
+@pytest.mark.roundoff
 def test_ring_sector_reproduces_the_axisymmetric_ring(tmp_path):
     """FEM (F-bar) on the same 5 x 4 section, μ = 0.15, to 50 % height
-    reduction: the 15° sector (2 cells around, symmetry planes at 0° and 15°)
-    gives the axisymmetric inner-diameter change to 0.2 percentage points and
-    the force of the full ring to 1 % (measured 0.13 points and 0.26 %, the
-    sector with the augmented law of the scene, the ring with the penalty law;
-    the sector's facets are chords, 0.2 % less area at 7.5° per cell).  At full
-    resolution (15 x 10 x 6) the two agree to 0.01 points and 0.1 %
-    (docs/forming_3d.md)."""
-    ring, _ = run(tmp_path, "ring", "fem", STEPS + ["geometry.divisions=[5, 4]"])
+    reduction in 40 steps: the 15° sector (2 cells around, symmetry planes
+    at 0° and 15°) gives the axisymmetric inner-diameter change to 0.1
+    percentage points and the force of the full ring to 1 % (measured 0.019
+    points and 0.38 %, the sector with the augmented law of the scene, the
+    ring with the penalty law; the sector's facets are chords, 0.2 % less
+    area at 7.5° per cell).  The load steps must be the same in both: the
+    step path alone moves the change by 0.4 points (20 steps: -26.14 %
+    against -25.74 % in 40), and in 20 steps Newton's cutbacks of the
+    sector follow round-off (27 sub-steps and 0.13 points under OpenBLAS's
+    SkylakeX kernels, 33 and 0.28 points under Sandybridge); in 40 steps
+    neither run cuts back under the SkylakeX, Haswell, Sandybridge and
+    Nehalem kernels, which agree to all printed digits.  At full resolution
+    (15 x 10 x 6) the two agree to 0.01 points and 0.1 % (docs/forming_3d.md)."""
+    steps = ["steps.count=40"]
+    ring, _ = run(tmp_path, "ring", "fem", steps + ["geometry.divisions=[5, 4]"])
     sector, status = run(tmp_path, "ring_sector", "fem",
-                         STEPS + ["geometry.divisions=[5, 2, 4]"])
+                         steps + ["geometry.divisions=[5, 2, 4]"])
+    # equal step paths (no cutback in either), the premise of the 0.1 points
+    assert [row["t"] for row in sector] == [row["t"] for row in ring], (
+        "the step paths differ (Newton cut a step back): the comparison then "
+        "includes their 0.1-0.4 points of step-path difference")
     assert status.startswith("completed") and float(sector[-1]["t"]) == 1.0
     change_2d = 100 * (float(ring[-1]["inner_mid x"]) / 30.0 - 1)
     change_3d = 100 * (float(sector[-1]["inner_mid x"]) / 30.0 - 1)
     assert change_2d < -20  # friction turns the inner surface inward
-    assert abs(change_3d - change_2d) < 0.2
+    assert abs(change_3d - change_2d) < 0.1
     force_2d = -float(ring[-1]["reaction platen y"])
     force_3d = -24 * float(sector[-1]["reaction platen z"])
     assert force_3d == pytest.approx(force_2d, rel=1e-2)

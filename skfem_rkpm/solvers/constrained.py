@@ -222,7 +222,7 @@ def _eliminated(solver, K, f, C, g):
         return None
     d0 = elimination.particular(g)
     if dense:
-        reduced, _ = elimination.reduce_dense(K)
+        reduced = elimination.reduce_dense(K)
         solver.backend("dense").factor(reduced)
     else:
         reduced = elimination.reduce(K)

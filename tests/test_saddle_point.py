@@ -220,7 +220,7 @@ def test_null_space_solve_equals_the_saddle_point_solve(case):
     D, L = solve_saddle_point(solver, K, F, C, G)
     assert solver.system.startswith("Zᵀ K Z")
     # Z a selection for FEM rows of one component; skew rows couple components
-    assert solver._null_space[1].selection == (case.startswith("fem") and "skew" not in case)
+    assert solver.null_space.selection == (case.startswith("fem") and "skew" not in case)
     augmented = make_solver("superlu")
     for j in range(3):
         d_ref, lam_ref, (spread_d, spread_lam) = saddle_point_reference(K, C, F[:, j],
@@ -248,6 +248,25 @@ def test_null_space_of_dependent_rows_keeps_the_saddle_point():
 BILLET = ["geometry.divisions=[4, 2, 3]", "steps.count=4",
           "tools.platen.motion=[0.0, 0.0, -1.5]"]
 BLOCK = ["geometry.divisions=[3, 3, 3]", "steps.count=5", "steps.tolerance=1e-12"]
+
+
+def test_null_space_is_built_once_per_set_of_rows():
+    """The same rows give the kept basis (also to a new solver); rows
+    changed in place or gone are not served from the cache."""
+    from skfem_rkpm.solvers import nullspace
+    _, C, _ = rk_2d_weak()
+    first = nullspace.for_rows(C)
+    assert nullspace.for_rows(C) is first
+    C.data *= 2.0
+    second = nullspace.for_rows(C)
+    assert second is not first
+    np.testing.assert_allclose(second.W, first.W, rtol=1e-12, atol=1e-12)  # C_D⁻¹ C_I
+    del C
+    import gc
+    gc.collect()
+    other = rk_2d_weak()[1]
+    nullspace.for_rows(other)  # the entry of the rows gone is dropped
+    assert all(entry[0]() is not None for entry in nullspace._KEPT)
 
 
 @pytest.mark.parametrize("scene, method, settings", [

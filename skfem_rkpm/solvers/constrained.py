@@ -25,7 +25,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 from ..approximation.constraints import transformation
 from .backend import _canonical
 from .linear import Auto, DenseLU, NotPositiveDefinite, SuperLU, make_solver
-from .nullspace import null_space
+from .nullspace import for_rows
 
 __all__ = ["solve", "solve_constrained", "linear_solve", "solve_saddle_point"]
 
@@ -210,11 +210,9 @@ def _eliminated(solver, K, f, C, g):
     (:mod:`skfem_rkpm.solvers.nullspace`), or None where that does not pay:
     when the reduced matrix ``Zᵀ K Z`` is neither a selection of ``K`` (FEM)
     nor small and dense enough for dense LU (``Auto.choose`` on ``K``).  The
-    basis is built once per set of conditions and kept on ``solver``."""
-    kept = getattr(solver, "_null_space", None)
-    if kept is None or not _same_rows(kept[0], C):
-        kept = solver._null_space = (C, null_space(C))
-    elimination = kept[1]
+    basis is built once per set of conditions
+    (:func:`~skfem_rkpm.solvers.nullspace.for_rows`)."""
+    elimination = solver.null_space = for_rows(C)
     if elimination is None:
         return None
     dense = solver.choose(K) == "dense"
@@ -232,16 +230,6 @@ def _eliminated(solver, K, f, C, g):
     z = solver.solve(elimination.reduced_load(K, f, d0))
     d = elimination.expand(z, d0)
     return d, elimination.multipliers((K @ d - f)[elimination.D])
-
-
-def _same_rows(A, B):
-    """``A`` and ``B`` are the same sparse rows (the same object, or equal)."""
-    if A is B:
-        return True
-    if A.shape != B.shape:
-        return False
-    A, B = sp.csr_matrix(A), sp.csr_matrix(B)
-    return A.nnz == B.nnz and abs(A - B).max() == 0 if A.nnz else B.nnz == 0
 
 
 def _saddle_matrix(K, C, dense=False):

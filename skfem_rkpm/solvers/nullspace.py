@@ -24,11 +24,13 @@ factorization (:class:`~skfem_rkpm.solvers.linear.Auto` picks dense LU for
 small dense tangents).
 """
 
+import weakref
+
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-__all__ = ["NullSpace", "null_space", "QR_ENTRIES", "QR_FLOPS"]
+__all__ = ["NullSpace", "null_space", "for_rows", "QR_ENTRIES", "QR_FLOPS"]
 
 #: most entries ``m x touched columns`` of the dense block of ``C`` whose
 #: pivoted QR picks the columns ``D`` (larger sets of conditions keep the
@@ -179,3 +181,39 @@ def null_space(C):
     if not diagonal.size or not diagonal[-1] > PIVOT_RATIO * diagonal[0]:
         return None
     return NullSpace(C, np.sort(touched[pivots[:m]]), touched)
+
+
+#: the null spaces of the last sets of rows given to :func:`for_rows`
+_KEPT = []
+#: how many are kept
+KEPT = 4
+
+
+def for_rows(C):
+    """:func:`null_space` of ``C``, built once while the same rows come
+    again: a Newton run passes one matrix of conditions to every solve,
+    also where each solve makes its own solver.  The rows are known by the
+    object (a weak reference) and checked to be unchanged."""
+    _KEPT[:] = [entry for entry in _KEPT if entry[0]() is not None]  # rows gone: freed
+    for rows, data, elimination in _KEPT:
+        if rows() is C and _unchanged(C, data):
+            return elimination
+    elimination = null_space(C)
+    try:
+        _KEPT.insert(0, (weakref.ref(C), _fingerprint(C), elimination))
+    except TypeError:  # not weakly referable: not kept
+        return elimination
+    del _KEPT[KEPT:]
+    return elimination
+
+
+def _fingerprint(C):
+    C = sp.csr_matrix(C)
+    return C.shape, C.indptr.copy(), C.indices.copy(), C.data.copy()
+
+
+def _unchanged(C, data):
+    C = sp.csr_matrix(C)
+    shape, indptr, indices, values = data
+    return (C.shape == shape and np.array_equal(C.indptr, indptr)
+            and np.array_equal(C.indices, indices) and np.array_equal(C.data, values))

@@ -253,6 +253,9 @@ BLOCK = ["geometry.divisions=[3, 3, 3]", "steps.count=5", "steps.tolerance=1e-12
 def test_null_space_is_built_once_per_set_of_rows():
     """The same rows give the kept basis (also to a new solver); rows
     changed in place or gone are not served from the cache."""
+    import gc
+    import weakref
+
     from skfem_rkpm.solvers import nullspace
     _, C, _ = rk_2d_weak()
     first = nullspace.for_rows(C)
@@ -261,11 +264,12 @@ def test_null_space_is_built_once_per_set_of_rows():
     second = nullspace.for_rows(C)
     assert second is not first
     np.testing.assert_allclose(second.W, first.W, rtol=1e-12, atol=1e-12)  # C_D⁻¹ C_I
+    gone = weakref.ref(C)
     del C
-    import gc
     gc.collect()
+    assert gone() is None  # the kept basis does not hold the rows alive
     other = rk_2d_weak()[1]
-    nullspace.for_rows(other)  # the entry of the rows gone is dropped
+    nullspace.for_rows(other)  # and the entry of the rows gone is dropped
     assert all(entry[0]() is not None for entry in nullspace._KEPT)
 
 

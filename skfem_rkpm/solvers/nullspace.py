@@ -60,8 +60,7 @@ class NullSpace:
     """
 
     def __init__(self, C, D, touched):
-        C = sp.csr_matrix(C)
-        self.C = C
+        C = sp.csr_matrix(C)  # not kept: for_rows keeps the basis while C lives
         self.N = N = C.shape[1]
         self.D = D
         free = np.ones(N, dtype=bool)

@@ -36,9 +36,18 @@ BLOCK_ENTRIES = 2**18
 #: the scatter map finds matrix positions in a dense (test x trial particle)
 #: table of positions if it has at most this many entries, else by binary search
 DENSE_POSITIONS = 2**24
-#: a scatter map with at most this many local entries is stored even when
-#: the dense table of positions could find them again (faster repeated sums)
-STORED_ENTRIES = 2**22
+#: a scatter map with at most this many local entries is stored (intp) even
+#: when the dense table of positions could find them again: a matrix is then
+#: one bincount (measured on the RK billet_3d tangent, 5.4e6 local entries:
+#: 11 ms against 26 ms with the places looked up again at every call); the
+#: local matrices it sums have as many entries, in float64
+STORED_ENTRIES = 2**24
+#: above ``STORED_ENTRIES`` and up to this many local entries the scatter map
+#: is stored as int32 (half the bytes of the local matrices) and widened block
+#: by block when a matrix is summed (16 ms on the same tangent), instead of
+#: being looked up again in the table of positions; beyond, nothing as large
+#: as the local matrices is stored
+COMPACT_ENTRIES = 2**27
 #: local matrix entries summed per call of bincount when the places of local
 #: entries are looked up block by block (dense table of positions)
 SCATTER_ENTRIES = 2**21
@@ -236,19 +245,21 @@ class Assembler:
         self._nodes_v = np.ascontiguousarray(V.element_nodes.T)  # (nelems, nloc_v)
         self._nodes_u = np.ascontiguousarray(U.element_nodes.T)
         self._length, self._start = np.diff(indptr_s), indptr_s[:-1]
-        self._table = scatter = None
+        self._table = scatter = self._compact = None
         entries = nelems * self._nodes_v.shape[1] * self._nodes_u.shape[1] * cu * cv
+        nnz = cu * cv * len(cols_s)
         if nu * nv <= DENSE_POSITIONS:
             self._table = np.empty((nv, nu), dtype=np.intp)
             self._table[rows_s, cols_s] = np.arange(len(cols_s))
             if entries <= STORED_ENTRIES:  # small: keep the scatter map too
                 scatter = self._table_places(slice(None))
+            elif entries <= COMPACT_ENTRIES and nnz < 2**31:
+                self._compact = self._compact_places(entries)
         else:
             keys = rows_s.astype(np.int64) * nu + cols_s
             position = np.searchsorted(keys, (self._nodes_v[:, :, None].astype(np.int64)
                                               * nu + self._nodes_u[:, None, :]))
             scatter = self._expand(position.astype(np.intp), slice(None)).reshape(-1)
-        nnz = cu * cv * len(cols_s)
         length, start = self._length, self._start
         indptr = np.concatenate([[0], np.cumsum(np.repeat(cu * length, cv))])
         # column indices: vector row c_v I + a repeats the block columns of row I
@@ -281,12 +292,22 @@ class Assembler:
                 np.add(block, c_a * row + c_b, out=out[:, :, c_a, c_b, :])
         return out
 
+    def _compact_places(self, entries):
+        """The scatter map as int32, looked up block by block of cells."""
+        nelems = self.layout.element_nodes.shape[1]
+        compact = np.empty(entries, dtype=np.int32).reshape(nelems, -1)
+        for s in self._blocks(compact.shape[1], SCATTER_ENTRIES):
+            compact[s] = self._table_places(s).reshape(s.stop - s.start, -1)
+        return compact
+
     def _places(self, s):
         """Places in the CSR data of the local entries of cells ``s``, flat."""
         scatter = self._pattern_parts()[0]
+        nelems = self.layout.element_nodes.shape[1]
         if scatter is not None:
-            nelems = self.layout.element_nodes.shape[1]
             return scatter.reshape(nelems, -1)[s].reshape(-1)
+        if self._compact is not None:
+            return self._compact[s].reshape(-1).astype(np.intp)
         return self._table_places(s)
 
     def _table_places(self, s):

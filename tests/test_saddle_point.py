@@ -194,3 +194,111 @@ def test_block_3d_newton_run_is_the_same_as_with_the_saddle_point():
             assert rb.reactions[key] == pytest.approx(force, rel=1e-10, abs=1e-10 * max(
                 abs(v) for v in ra.reactions.values()))
     assert rel(b.d, a.d) < 1e-10
+
+
+def fem_3d_weak():
+    """FEM Hex1 with the weak symmetry rows of billet_3d on xmin, ymin,
+    zmin: for linear elements they touch only the constrained dofs, so the
+    null-space basis is a selection of the other unknowns."""
+    basis = Basis(box(2.0, 1.0, 1.5, 4, 2, 3), ElementVector(ElementHex1()), intorder=2)
+    rows = ConstraintSet([weak_constraint(basis, "xmin", 0), weak_constraint(basis, "ymin", 1),
+                          weak_constraint(basis, "zmin", 2)], basis.N)
+    return elasticity(basis, 3), rows.C, 0.01
+
+
+@pytest.mark.parametrize("case", list(CASES) + ["fem 3d weak"])
+def test_null_space_solve_equals_the_saddle_point_solve(case):
+    """``auto`` eliminates the conditions by a null-space basis
+    (:mod:`skfem_rkpm.solvers.nullspace`): one and three right-hand sides
+    against dense LU of the saddle-point matrix and against the augmented
+    Lagrangian solve (:func:`tolerance`)."""
+    K, C, value = (CASES.get(case) or fem_3d_weak)()
+    N, m = K.shape[0], C.shape[0]
+    rng = np.random.default_rng(11)
+    F = rng.normal(size=(N, 3)) * 100.0
+    G = np.zeros((m, 3))
+    G[:, 1] = value
+    G[:, 2] = rng.normal(size=m) * 0.01
+    solver = make_solver("auto")
+    D, L = solve_saddle_point(solver, K, F, C, G)
+    assert solver.system.startswith("Zᵀ K Z")
+    # Z a selection for FEM rows of one component; skew rows couple components
+    assert solver.null_space.selection == (case.startswith("fem") and "skew" not in case)
+    augmented = make_solver("superlu")
+    for j in range(3):
+        d_ref, lam_ref, (spread_d, spread_lam) = saddle_point_reference(K, C, F[:, j],
+                                                                        G[:, j])
+        assert rel(D[:, j], d_ref) < tolerance(spread_d)
+        assert rel(L[:, j], lam_ref) < tolerance(spread_lam)
+        d, lam = solve_saddle_point(solver, K, F[:, j], C, G[:, j])  # one column, kept basis
+        d_aug, lam_aug = solve_saddle_point(augmented, K, F[:, j], C, G[:, j])
+        assert rel(d, d_aug) < tolerance(spread_d) and rel(lam, lam_aug) < tolerance(spread_lam)
+        scale = abs(C).sum(axis=1).max() * np.abs(d).max() + np.abs(G[:, j]).max()
+        assert np.abs(C @ d - G[:, j]).max() <= 1e-12 * scale
+
+
+def test_null_space_of_dependent_rows_keeps_the_saddle_point():
+    """Rows that are nearly dependent (the pivoted QR finds it) are not
+    eliminated: ``auto`` solves the saddle point, as before."""
+    K, C, _ = rk_2d_weak()
+    C = sp.vstack([C, C[:1] * (1 + 1e-14)]).tocsr()
+    from skfem_rkpm.solvers.nullspace import null_space
+    assert null_space(C) is None
+
+
+#: the coarse billet pressed by 1.5 mm (10 %) in 4 steps: friction, contact
+#: (at the scene's tolerance 1e-6; at 1e-12 the RK run needs 800 sub-steps)
+BILLET = ["geometry.divisions=[4, 2, 3]", "steps.count=4",
+          "tools.platen.motion=[0.0, 0.0, -1.5]"]
+BLOCK = ["geometry.divisions=[3, 3, 3]", "steps.count=5", "steps.tolerance=1e-12"]
+
+
+def test_null_space_is_built_once_per_set_of_rows():
+    """The same rows give the kept basis (also to a new solver); rows
+    changed in place or gone are not served from the cache."""
+    import gc
+    import weakref
+
+    from skfem_rkpm.solvers import nullspace
+    _, C, _ = rk_2d_weak()
+    first = nullspace.for_rows(C)
+    assert nullspace.for_rows(C) is first
+    C.data *= 2.0
+    second = nullspace.for_rows(C)
+    assert second is not first
+    np.testing.assert_allclose(second.W, first.W, rtol=1e-12, atol=1e-12)  # C_D⁻¹ C_I
+    gone = weakref.ref(C)
+    del C
+    gc.collect()
+    assert gone() is None  # the kept basis does not hold the rows alive
+    other = rk_2d_weak()[1]
+    nullspace.for_rows(other)  # and the entry of the rows gone is dropped
+    assert all(entry[0]() is not None for entry in nullspace._KEPT)
+
+
+@pytest.mark.parametrize("scene, method, settings", [
+    ("block_3d", "rkpm", BLOCK), ("block_3d", "fem", BLOCK),
+    ("billet_3d", "rkpm", BILLET), ("billet_3d", "fem", BILLET),
+])
+def test_newton_run_with_the_null_space_is_the_same(scene, method, settings):
+    """Newton runs with ``auto`` (conditions eliminated) and with SuperLU
+    by name (augmented Lagrangian): the same steps and iterations, the
+    reactions (tool forces too) and coefficients equal to 1e-9.  Each
+    linear solve is backward stable to 1e-12, so both runs take the same
+    decisions and end their steps within round-off of each other (measured
+    on the billet: 1.5e-12 in d, 3e-12 in the forces)."""
+    common = settings + ["output.figures=false", "output.fields=false"]
+    results = {}
+    for name in ("auto", "superlu"):
+        sim = build(load_scene(builtin_scenes()[scene], common + [f'steps.solver="{name}"']),
+                    method)
+        result = run(sim, progress=False)
+        assert result.completed, result.message
+        results[name] = result
+    a, b = results["auto"], results["superlu"]
+    assert [r.iterations for r in a.history] == [r.iterations for r in b.history]
+    for ra, rb in zip(a.history, b.history):
+        largest = max(np.abs(v).max() for v in ra.reactions.values())
+        for key, force in ra.reactions.items():
+            assert np.abs(np.asarray(rb.reactions[key]) - force).max() <= 1e-9 * largest
+    assert rel(a.d, b.d) < 1e-9

@@ -17,19 +17,12 @@ from skfem.models.poisson import laplace
 
 import skfem_rkpm
 from skfem_rkpm import RKBasis
+from skfem_rkpm.verification.exact import sine_poisson
 from skfem_rkpm.approximation.shape import SingularMomentError
 
 
-@LinearForm
-def load(v, w):
-    x, y = w.x
-    return 2 * np.pi ** 2 * np.sin(np.pi * x) * np.sin(np.pi * y) * v
-
-
-@Functional
-def l2_error(w):
-    x, y = w.x
-    return (w["uh"] - np.sin(np.pi * x) * np.sin(np.pi * y)) ** 2
+load = LinearForm(lambda v, w: sine_poisson(w.x)[1] * v)
+l2_error = Functional(lambda w: (w["uh"] - sine_poisson(w.x)[0]) ** 2)
 
 
 def fem_error(mesh, element):

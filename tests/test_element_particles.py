@@ -12,6 +12,7 @@ from skfem.models.poisson import laplace
 
 import skfem_rkpm
 from skfem_rkpm import RKBasis
+from skfem_rkpm.verification.exact import sine_poisson
 from skfem_rkpm.approximation.element_particles import element_degree
 
 CASES = [(lambda: MeshTri().refined(2), ElementTriP2),
@@ -55,16 +56,8 @@ def test_elements_above_degree_two_are_refused_by_name():
     assert element_degree(ElementTriP1()) == 1 and element_degree(ElementQuad2()) == 2
 
 
-@LinearForm
-def load(v, w):
-    x, y = w.x
-    return 2 * np.pi ** 2 * np.sin(np.pi * x) * np.sin(np.pi * y) * v
-
-
-@Functional
-def l2_error(w):
-    x, y = w.x
-    return (w["uh"] - np.sin(np.pi * x) * np.sin(np.pi * y)) ** 2
+load = LinearForm(lambda v, w: sine_poisson(w.x)[1] * v)
+l2_error = Functional(lambda w: (w["uh"] - sine_poisson(w.x)[0]) ** 2)
 
 
 @pytest.mark.parametrize("mesh, element, bound", [

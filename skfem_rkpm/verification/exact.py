@@ -1,6 +1,7 @@
-"""Closed-form solutions used as references: plane linear elasticity
-(Timoshenko's cantilever, Kirsch's plate with a hole) and the homogeneous
-uniaxial compression of the finite-strain J2 model.
+"""Closed-form solutions used as references: Poisson on the unit square,
+plane linear elasticity (Timoshenko's cantilever, Kirsch's plate with a
+hole) and the homogeneous uniaxial compression of the finite-strain J2
+model.
 
 All functions take coordinates ``x`` of shape ``(2, ...)`` (``x[0]`` and
 ``x[1]`` may have any common shape, e.g. the ``(nelems, nqp)`` quadrature
@@ -32,7 +33,15 @@ __all__ = [
     "timoshenko_stress",
     "kirsch_displacement",
     "kirsch_stress",
+    "sine_poisson",
 ]
+
+
+def sine_poisson(x):
+    """``(u, f)`` of ``-Δu = f`` on the unit square with ``u = 0`` on its
+    boundary: ``u = sin πx sin πy``, ``f = 2π² u``."""
+    u = np.sin(np.pi * x[0]) * np.sin(np.pi * x[1])
+    return u, 2.0 * np.pi ** 2 * u
 
 
 def effective_constants(E, nu, plane="stress"):

@@ -21,6 +21,7 @@ beside the files there, and still never replaces a file it did not write
 import argparse
 import contextlib
 import hashlib
+import math
 import shlex
 import sys
 import warnings
@@ -100,10 +101,14 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False, overwr
     if root:
         count = sim.scene["steps"]["count"]
         done = scene_step(result.history[-1].t, count) if result.history else 0
+        if not result.completed and result.history:  # the last scene step is unfinished
+            done = math.floor(result.history[-1].t * count + 1e-9)
         solved = len(result.history)
         cut = f" (in {solved} sub-steps)" if solved != done else ""
         print(f"{result.message}: {done} of {count} steps{cut}, {iterations} Newton "
               f"iterations, {seconds:.1f} s")
+        if getattr(result, "report", ""):
+            print(result.report, file=sys.stderr)
     return sim, result
 
 

@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 from .folder import atomic_path  # noqa: E402
 from .io import nodal_displacements, nodal_plastic_strain  # noqa: E402
 from .plot3d import figures_3d, plot_section  # noqa: E402
+from .stops import _moving_tools, height_reduction  # noqa: E402
 
 __all__ = ["nodal_plastic_strain", "plot_deformed", "plot_history", "save_run_figures",
            "run_figures", "height_reduction", "inner_diameter_change", "friction_text",
@@ -49,29 +50,6 @@ def plot_deformed(ax, problem, d, title="", vmax=None, show_cells=True, scene=No
         ax.set_xlabel(f"{names[0]} ({unit})")
         ax.set_ylabel(f"{names[1]} ({unit})")
     return art
-
-
-def _moving_tools(scene):
-    """``{name: motion}`` of the tools with a prescribed motion."""
-    return {name.split(".", 1)[1]: np.asarray(section["motion"], float)
-            for name, section in scene.items()
-            if name.startswith("tools.") and section["motion"] and np.any(section["motion"])}
-
-
-def height_reduction(sim, t):
-    """Height reduction in percent at load factors ``t``: the travel of the
-    moving tools along the first one's motion over the part's initial height
-    in that direction; None for a scene without a moving tool."""
-    moving = _moving_tools(sim.scene)
-    if not moving:
-        return None
-    first = next(iter(moving.values()))
-    direction = first / np.linalg.norm(first)
-    height = np.ptp(direction @ sim.mesh.p)
-    travel = sum(abs(float(motion @ direction)) for motion in moving.values())
-    if travel >= height:  # the tools pass through the part's height: a punch, not a press
-        return None
-    return 100.0 * np.asarray(t, float) * travel / height
 
 
 def tool_travel(sim, t):

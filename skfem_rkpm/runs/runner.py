@@ -36,6 +36,7 @@ from .checkpoint import load_checkpoint, run_identity, save_checkpoint
 from .folder import RunFolder, open_append
 from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
                  nodal_displacements, record_from_json, record_to_json)
+from .stops import stop_report
 
 __all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text",
            "final_state_message", "blas_threads"]
@@ -292,10 +293,13 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, ga
         bar.close()
     result.history = history
     result.gauges = rows
+    result.report = ""
     if result.completed:
         result.message = final_state_message(sim, result.d)
+    else:
+        result.report = stop_report(sim, result)
     if folder is not None:
-        folder.status(result.message)
+        folder.status("\n".join(filter(None, [result.message, result.report])))
     return result
 
 

@@ -117,6 +117,8 @@ class Result:
     solutions: list
     completed: bool
     message: str = ""
+    #: the last error of the step that failed (None for a completed run)
+    error: BaseException = None
 
 
 @dataclass
@@ -308,7 +310,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                     message = (f"step {step_index + 1} to t = {target:.6g} failed after "
                                f"{cut} cut-backs: {last_error} (last try: t = {t:.6g})")
                     log(message)
-                    return Result(d, history, solutions, False, message)
+                    return Result(d, history, solutions, False, message, last_error)
                 break
             problem.commit(ev)
             if _solver_line(linear_solver) != described:

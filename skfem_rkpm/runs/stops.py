@@ -1,0 +1,105 @@
+"""How far a run got and why it stopped.
+
+A run that does not complete says, on the console and in ``status.txt``:
+
+- how far it got: the load factor of its last converged step and, for a
+  press, the height reduction reached;
+- what failed: the quadrature point or particle whose ``det F`` went
+  non-positive (where it started and where it is now), a Newton step that
+  did not converge, or contact multipliers that did not settle;
+- which option would go further, for that cause and this discretization.
+"""
+
+import numpy as np
+
+from ..mechanics.problem import InvertedElementError, NonFiniteError
+
+__all__ = ["height_reduction", "stop_report"]
+
+
+def _moving_tools(scene):
+    """``{name: motion}`` of the tools with a prescribed motion."""
+    return {name.split(".", 1)[1]: np.asarray(section["motion"], float)
+            for name, section in scene.items()
+            if name.startswith("tools.") and section["motion"] and np.any(section["motion"])}
+
+
+def height_reduction(sim, t):
+    """Height reduction in percent at load factors ``t``: the travel of the
+    moving tools along the first one's motion over the part's initial height
+    in that direction; None for a scene without a moving tool."""
+    moving = _moving_tools(sim.scene)
+    if not moving:
+        return None
+    first = next(iter(moving.values()))
+    direction = first / np.linalg.norm(first)
+    height = np.ptp(direction @ sim.mesh.p)
+    travel = sum(abs(float(motion @ direction)) for motion in moving.values())
+    if travel >= height:  # the tools pass through the part's height: a punch, not a press
+        return None
+    return 100.0 * np.asarray(t, float) * travel / height
+
+
+def _reached(sim, result):
+    """``reached t = … (…% height reduction), step i of n``."""
+    t = result.history[-1].t if result.history else 0.0
+    count = sim.scene["steps"]["count"]
+    text = f"reached t = {t:.4g} of 1"
+    reduction = height_reduction(sim, t)
+    if reduction is not None:
+        text += f" ({float(reduction):.1f} % height reduction)"
+    return text + f" in {len(result.history)} converged steps (the scene has {count})"
+
+
+def _position_now(sim, d, point):
+    """Current position of a flat quadrature point (or particle) index."""
+    problem = sim.problem
+    X = np.asarray(problem.basis.global_coordinates())
+    X = X.reshape(len(X), -1)
+    u = np.asarray(problem.basis.interpolate(d)).reshape(len(X), -1)
+    return X[:, point] + u[:, point]
+
+
+def _integration(sim):
+    return "fem" if sim.method == "fem" else sim.scene["discretization"]["integration"]
+
+
+def _cause(sim, result):
+    """(what failed, what would go further) for the last error of a run."""
+    error = getattr(result, "error", None)
+    scheme = _integration(sim)
+    more_steps = (f"more load steps (--set steps.count={2 * sim.scene['steps']['count']}) "
+                  f"or more cut-backs (--set steps.max_cutbacks="
+                  f"{sim.scene['steps']['max_cutbacks'] + 4})")
+    if isinstance(error, InvertedElementError):
+        points = np.atleast_1d(getattr(error, "points", []))
+        where = ""
+        if points.size and not getattr(sim.problem, "partitioned", False):
+            x = _position_now(sim, result.d, int(points[0]))
+            where = (f"; that point is now at x = ({', '.join(f'{v:.4g}' for v in x)}) "
+                     "in the last converged state")
+        failed = f"det F <= 0: {error}{where}"
+        if scheme == "fem":
+            return failed, ("the elements fold: try --method rkpm (particles with smooth "
+                            "functions over several cells) or " + more_steps)
+        if scheme in ("scni", "dni"):
+            return failed, ("a particle's smoothing cell inverts: try a larger support "
+                            "(--set discretization.dilation=3) or " + more_steps)
+        return failed, ("the background cells that carry the quadrature fold: try "
+                        "--set discretization.integration=scni (nodal integration, no "
+                        "background cells) or " + more_steps)
+    if isinstance(error, NonFiniteError):
+        return f"a non-finite value: {error}", "check the scene's values; then " + more_steps
+    text = str(error) if error is not None else result.message
+    if "augmented Lagrangian" in text:
+        return (f"the contact multipliers did not settle: {text}",
+                "try a larger penalty (--set tools.NAME.penalty_factor=100) or "
+                "--set tools.NAME.enforcement=penalty, or " + more_steps)
+    return f"Newton did not converge: {text}", more_steps
+
+
+def stop_report(sim, result):
+    """The lines a run that stopped writes to the console and ``status.txt``."""
+    failed, advice = _cause(sim, result)
+    return "\n".join([f"stopped: {_reached(sim, result)}", f"cause: {failed}",
+                      f"to go further: {advice}"])

@@ -1,0 +1,85 @@
+"""A run that stops says how far it got, what failed and where that point is
+now, and which option would go further (console and status.txt)."""
+
+import csv
+import re
+
+import numpy as np
+import pytest
+
+import skfem_rkpm.runs.runner as runner
+from skfem_rkpm.runs.cli import main
+from skfem_rkpm.runs.scene import builtin_scenes, load_scene
+
+# the ring pressed to 85 % of its height in 10 steps on a coarse mesh, two
+# cut-backs allowed: FEM Q1 folds an element near the platen at 77 %
+FOLDING = ["geometry.divisions=[6,4]", "steps.count=10", "tools.platen.motion=[0.0,-17.0]",
+           "steps.max_cutbacks=2", "output.fields=false", "output.figures=false"]
+
+
+def ring(settings):
+    return load_scene(builtin_scenes()["ring"], settings)
+
+
+def test_a_folded_element_is_named_with_where_it_is_now_and_what_goes_further(tmp_path):
+    sim = runner.build(ring(FOLDING), "fem")
+    result = runner.run(sim, tmp_path, progress=False)
+    assert not result.completed
+    status = (tmp_path / "status.txt").read_text()
+    assert status.startswith(result.message)
+    rows = list(csv.DictReader(open(tmp_path / "history.csv", newline="")))
+    t = float(rows[-1]["t"])
+    # how far: the last converged load factor and its height reduction
+    # (17 mm of platen travel on the ring's 20 mm half height, per unit t)
+    reached = re.search(r"reached t = ([\d.]+) of 1 \(([\d.]+) % height reduction\) in "
+                        r"(\d+) converged steps \(the scene has 10\)", status)
+    assert reached, status
+    assert float(reached[1]) == pytest.approx(t, rel=1e-3)
+    assert float(reached[2]) == pytest.approx(100 * t * 17.0 / 20.0, abs=0.05)
+    assert int(reached[3]) == len(rows)
+    # what failed: the cell and point, where they started and are now
+    cause = re.search(r"cause: det F <= 0: .* in cell (\d+) \(point (\d+)\) at X = "
+                      r"\(([-\d.e]+), ([-\d.e]+)\); that point is now at x = "
+                      r"\(([-\d.e]+), ([-\d.e]+)\)", status)
+    assert cause, status
+    X = np.array([float(cause[3]), float(cause[4])])
+    u = (sim.basis.probes(X[:, None]) @ result.d).ravel()  # an independent evaluation
+    np.testing.assert_allclose([float(cause[5]), float(cause[6])], X + u, rtol=1e-3,
+                               atol=1e-3 * 20.0)  # the 4 digits printed
+    # which option: FEM elements fold, RKPM is the way on
+    assert "to go further: the elements fold: try --method rkpm" in status
+    assert "--set steps.count=20" in status
+
+
+def test_the_console_shows_the_report_and_counts_only_finished_scene_steps(tmp_path, capsys):
+    code = main(["run", "ring", "--method", "fem", "--quiet", "--out", str(tmp_path / "r"),
+                 *[f"--set={s}" for s in FOLDING]])
+    assert code == 1
+    out, err = capsys.readouterr()
+    assert re.search(r": 9 of 10 steps \(in \d+ sub-steps\)", out), out
+    assert "stopped: reached t = 0.91" in err and "to go further:" in err
+
+
+def test_rkpm_on_background_cells_is_pointed_to_nodal_integration(tmp_path):
+    """99.5 % of the height in 10 steps, no cut-back: the first step folds
+    RKPM's background cells (31 Gauss points with det F < 0)."""
+    sim = runner.build(ring(FOLDING[:2] + ["tools.platen.motion=[0.0,-19.9]",
+                                           "steps.max_cutbacks=0", "output.fields=false",
+                                           "output.figures=false"]), "rkpm")
+    result = runner.run(sim, tmp_path, progress=False)
+    assert not result.completed
+    assert "cause: det F <= 0" in result.report
+    assert ("the background cells that carry the quadrature fold: try --set "
+            "discretization.integration=scni") in result.report
+
+
+def test_newton_that_does_not_converge_is_named_with_more_steps(tmp_path):
+    sim = runner.build(ring(["geometry.divisions=[6,4]", "steps.count=2",
+                             "steps.max_iterations=2", "steps.max_cutbacks=0",
+                             "output.fields=false", "output.figures=false"]), "fem")
+    result = runner.run(sim, tmp_path, progress=False)
+    assert not result.completed
+    assert "cause: Newton did not converge: no convergence in 2 iterations" in result.report
+    assert "to go further: more load steps (--set steps.count=4) or more cut-backs " \
+           "(--set steps.max_cutbacks=4)" in result.report
+    assert "reached t = 0 of 1 (0.0 % height reduction) in 0 converged steps" in result.report

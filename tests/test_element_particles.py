@@ -67,7 +67,7 @@ l2_error = Functional(lambda w: (w["uh"] - sine_poisson(w.x)[0]) ** 2)
 def test_quadratic_swap_is_as_accurate_as_fem(mesh, element, bound):
     """-Δu = 2π² sin πx sin πy, u = 0 on the unit square: the L² error of
     RKBasis(mesh, element) (order 2 on the element's dofs, support 2.5) is
-    below FEM's (a bound of 1.5x the measured ratio; the issue's bar is 2.5x)."""
+    below FEM's (a bound of 1.5x the measured ratio; the target is 2.5x)."""
     fem = Basis(mesh, element(), intorder=6)
     u = solve(*condense(asm(laplace, fem), asm(load, fem), D=fem.get_dofs()))
     error = np.sqrt(l2_error.assemble(fem, uh=fem.interpolate(u)))

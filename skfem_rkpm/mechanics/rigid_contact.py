@@ -345,9 +345,10 @@ class RigidContact:
         active = self._freeze.apply(pressed <= 0.0)
         return active, self.omega_n * np.where(active, -pressed, 0.0)
 
-    def evaluate(self, d, t):
+    def evaluate(self, d, t, tangent=True):
         """Contact force (added to the internal force) and its tangent at
-        coefficients ``d`` and load factor ``t``."""
+        coefficients ``d`` and load factor ``t``; ``tangent=False`` skips the
+        tangent (None), for explicit time steps that need the force only."""
         pts = self.points
         x = pts.X + pts.displacements(d)
         proj = self.tool.project(x, t)
@@ -359,7 +360,7 @@ class RigidContact:
         _check_finite_traction(traction, pts.X, self.name)
         f = self._coupling.GT @ (-(pts.weights * traction)).T.ravel()
         K = _rigid_tangent(self._coupling, proj, slipped, law, self.omega_n, self.omega_t,
-                           self.mu, pts)
+                           self.mu, pts) if tangent else None
         self._normals = proj.normal  # for touching(): the linearized gaps
         self.trial = ContactState(x, proj.gap, proj.normal, proj.tangent, relative,
                                   node_gap, pressure, shear, law[2], law[3],

@@ -249,9 +249,10 @@ class SurfaceContact(RigidContact):
                trial, mean_slip, phi, dphi)
         return node_gap, law
 
-    def evaluate(self, d, t):
+    def evaluate(self, d, t, tangent=True):
         """Contact force (added to the internal force) and its tangent at
-        coefficients ``d`` and load factor ``t``."""
+        coefficients ``d`` and load factor ``t``; ``tangent=False`` skips the
+        tangent (None), for explicit time steps that need the force only."""
         pts = self.points
         x = pts.X + pts.displacements(d)
         proj = self.tool.project(x, t)
@@ -264,7 +265,7 @@ class SurfaceContact(RigidContact):
         _check_finite_traction(traction, pts.X, self.name)
         f = self._coupling.GT @ (-(pts.weights * traction)).T.ravel()
         K = _surface_tangent(self._coupling, proj, pts, law, slipped, self.omega_n,
-                             self.omega_t, self.mu, self._symmetry)
+                             self.omega_t, self.mu, self._symmetry) if tangent else None
         self._normals = proj.normal
         self._sticking_slip = law[6][:, None] * law[5]  # φ ŝ: what stick must keep at 0
         size = np.linalg.norm(tangential, axis=0)

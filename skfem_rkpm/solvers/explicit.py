@@ -175,7 +175,7 @@ class CentralDifference:
         evaluation = self.problem.evaluate(d, tangent=False)
         contact = np.zeros_like(d)
         for c in self.contacts:
-            contact += c.evaluate(d, t)[0]
+            contact += c.evaluate(d, t, tangent=False)[0]
         return evaluation, contact
 
     def _commit(self, evaluation):

@@ -154,14 +154,18 @@ def test_rkpm_stick_ring_runs_until_the_hole_closes_fem_stops_earlier():
     """Pressed toward 70 % under stick, RKPM runs until the inner surface at
     mid-height reaches the axis (measured 67.9 %, inner radius −0.5 mm; the
     model has no contact with the axis, so it cannot go further), while
-    Q1 with F-bar stops near 53 % with inverted cells, saying so."""
+    Q1 with F-bar stops near 52 % at the fold, saying so: with det F <= 0
+    or with Newton failing in the cut-backs before it (which of the two
+    comes first moves with round-off: both were seen, at 52.3 %)."""
     settings = ("tools.platen.motion=[0.0,-14.0]", "steps.count=140")
     rk = paper_ring("rkpm", "stick", *settings)
     reached = 0.7 * rk.history[-1].t
     assert reached > 0.65
     assert rk.gauges[-1]["inner_mid x"] < 1.0
     fem = paper_ring("fem", "stick", *settings)
-    assert not fem.completed and "det F" in fem.message
+    assert not fem.completed
+    assert "det F" in fem.message or "no convergence" in fem.message, fem.message
+    assert "stopped: reached t = " in fem.report and "to go further: " in fem.report
     assert 0.5 < 0.7 * fem.history[-1].t < reached
 
 

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import ArpackNoConvergence, eigsh, splu
+from scipy.sparse.linalg import splu
 
-from ..mechanics.mass import lumped_mass
+from ..mechanics.mass import lumped_mass, scaled_largest
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 
 __all__ = ["CentralDifference", "EnergyRecord", "contact_frequency_bound"]
@@ -152,18 +152,8 @@ class CentralDifference:
         (Lanczos on ``M^(-1/2) K_sym M^(-1/2)``; the symmetric part bounds the
         real parts of a non-symmetric tangent's eigenvalues)."""
         K = sp.csr_matrix(self.problem.evaluate(d, state).K)
-        scale = sp.diags(1.0 / np.sqrt(self.mass))
-        A = scale @ (0.5 * (K + K.T)) @ scale
-        if A.shape[0] <= 400:
-            w, V = np.linalg.eigh(A.toarray())
-            self._mode = V[:, -1]
-            return float(w[-1])
-        try:
-            w, V = eigsh(A, k=1, which="LA", v0=self._mode, tol=1e-6)
-        except ArpackNoConvergence as failure:  # keep the best Ritz pair
-            w, V = failure.eigenvalues, failure.eigenvectors
-        self._mode = V[:, 0]
-        return float(w[0])
+        omega2, self._mode = scaled_largest(0.5 * (K + K.T), self.mass, self._mode, tol=1e-6)
+        return omega2
 
     def stable_step(self, d, state=None):
         """``safety · 2 / sqrt(ω²_body + ω²_contact)`` at coefficients ``d``."""

@@ -25,7 +25,7 @@ import os
 import sys
 import time as clock
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -39,12 +39,7 @@ from .scene_dynamics import dynamics_of, initial_of
 from .stops import explicit_stop_report
 
 __all__ = ["ExplicitResult", "explicit_scheme", "initial_velocity", "run_explicit",
-           "time_text", "ENERGY_COLUMNS"]
-
-#: the energy columns of ``history.csv`` (work done on the body counted as
-#: external work; ``balance`` = leapfrog kinetic + internal + contact − external)
-ENERGY_COLUMNS = ("kinetic", "leapfrog kinetic", "internal", "contact", "external work",
-                  "balance", "balance error")
+           "history_row", "time_text", "summary", "save_explicit_figures", "console_run"]
 
 
 @dataclass
@@ -65,7 +60,6 @@ class ExplicitResult:
     time: float = 0.0
     duration: float = 0.0
     cpu_seconds: float = 0.0
-    history: list = field(default_factory=list)
 
 
 def time_text(seconds):
@@ -273,7 +267,6 @@ def run_explicit(sim, out=None, progress=True, resume=False, overwrite=False):
         finally:
             bar.close()
             result.cpu_seconds = clock.process_time() - start
-        result.history = records
         if result.error is None:
             result.completed = True
             result.message = final_state_message(sim, result.d)

@@ -32,6 +32,7 @@ import numpy as np
 from ..solvers.petsc import is_root, world
 from ..solvers.linear import BACKENDS
 from .scene import SceneError, builtin_scenes, load_scene
+from .scene_dynamics import is_dynamic
 
 __all__ = ["main"]
 
@@ -73,6 +74,10 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False, overwr
 
     scene = load_scene(path, settings)
     sim = build(scene, method, trust_geo=trust_geo)
+    if is_dynamic(scene):  # central differences: runs/explicit_run.py
+        from .explicit_run import console_run
+
+        return sim, console_run(sim, out, quiet, resume, overwrite)
     root = is_root()  # under mpiexec only rank 0 writes and prints
     ranks = world()[1]
     if root:
@@ -133,6 +138,10 @@ def cmd_run(args):
         _, result = _run_one(path, settings, args.method, out, args.resume, args.quiet,
                              args.trust_geo, args.overwrite)
     except KeyboardInterrupt:
+        if is_dynamic(load_scene(path, settings)):
+            print(f"\ninterrupted: the outputs written so far are in {out}; an explicit "
+                  f"run does not resume, run it again to start over", file=sys.stderr)
+            return 130
         again = ["skfem-rkpm", "run", args.scene, *(f"--set={s}" for s in settings),
                  *(["--method", args.method] if args.method else []),
                  *(["--trust-geo"] if args.trust_geo else []), "--out", str(out),
@@ -149,6 +158,9 @@ def cmd_compare(args):
     from .folder import RunFolder
 
     path = _scene_path(args.scene)
+    if is_dynamic(load_scene(path, args.set)):
+        raise SceneError(f"compare runs static scenes; {path.stem} is dynamic: run "
+                         f"skfem-rkpm run {args.scene} --method rkpm and --method fem")
     out = _out(args, path, None, args.set, "-compare")
     runs = {}
     with contextlib.ExitStack() as stack:

@@ -56,7 +56,7 @@ LOCK = ".lock"
 WRITES = {
     "run": ("status.txt", "scene.toml", "history.csv", "history.jsonl", "fields.xdmf",
             "fields", "fields/mesh.h5", "fields/step-*.h5", "checkpoint.npz",
-            "deformed.png", "forces.png", "calibration.png", "section.png"),
+            "deformed.png", "forces.png", "calibration.png", "section.png", "energy.png"),
     "compare": ("report.md", "compare.png"),
     "sweep": ("sweep.csv",),
 }

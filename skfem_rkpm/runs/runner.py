@@ -36,6 +36,7 @@ from .checkpoint import load_checkpoint, run_identity, save_checkpoint
 from .folder import RunFolder, open_append
 from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
                  nodal_displacements, record_from_json, record_to_json)
+from .scene_dynamics import is_dynamic
 from .stops import stop_report
 
 __all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text",
@@ -154,6 +155,10 @@ def run(sim, out=None, progress=True, resume=False, log=None, overwrite=False):
     KeyboardInterrupt
         On Ctrl-C or SIGTERM, after the step being written is complete.
     """
+    if is_dynamic(sim.scene):
+        raise ValueError(f"this scene has dynamics.scheme = "
+                         f"{sim.scene['dynamics']['scheme']!r}: run it with "
+                         f"skfem_rkpm.runs.explicit_run.run_explicit (skfem-rkpm run does)")
     out = Path(out) if out is not None else None
     solver = _linear_solver(sim)  # a missing solver package stops here, folder untouched
     with contextlib.ExitStack() as stack:

@@ -2,8 +2,9 @@
 onto the library's Python objects.
 
 A scene has the sections ``model``, ``geometry``, ``discretization``,
-``material``, ``tools``, ``boundary``, ``steps`` and ``output`` (see
-``docs/scenes.md``, generated from :data:`SCHEMA`).  :func:`load_scene`
+``material``, ``tools``, ``boundary``, ``steps`` and ``output``, and the
+optional ``dynamics`` and ``initial`` (:mod:`~skfem_rkpm.runs.scene_dynamics`;
+see ``docs/scenes.md``, generated from :data:`SCHEMA`).  :func:`load_scene`
 reads and validates a file; every error names the offending key and its
 line in the file.  :func:`build` turns a validated scene into the mesh,
 basis, problem, conditions and tools that :func:`skfem_rkpm.runs.runner.run`
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..solvers.backend import BACKENDS
+from .scene_dynamics import DENSITY, OPTIONAL_SECTIONS, check_dynamics
 from .scene_geometry import check_components, check_geometry, mesh_from, model_dimension
 from .scene_tools import TOOL_SCHEMA, check_tool
 from .scene_values import (COMPONENTS, HISTORY, Key, SceneError, _angle_span, _annulus_radii,
@@ -153,6 +155,7 @@ SCHEMA = {
         "extrapolation": Key("str", "linear", choices=("linear", "constant"),
                              doc="table: beyond the last point, continue the last "
                                  "segment's slope or keep the last stress"),
+        "density": DENSITY,
     },
     "tools.*": TOOL_SCHEMA,
     "boundary.*": {
@@ -190,6 +193,7 @@ SCHEMA = {
                       choices=("auto", *BACKENDS),
                       doc="linear solver of the Newton iterations (skfem_rkpm.solvers.linear)"),
     },
+    **OPTIONAL_SECTIONS,
     "output": {
         "fields": Key("bool", True, doc="write fields.xdmf (+ .h5) for ParaView"),
         "every": Key("int", 1, check=_positive, doc="write fields every n-th step"),
@@ -290,10 +294,12 @@ def parse_scene(text, source="<scene>", base=None, origins=None):
             known = sorted(s.replace(".*", "") for s in SCHEMA)
             fail(name, f"unknown section; known sections: {', '.join(known)}")
     for name in SCHEMA:
-        if "*" not in name and name not in scene:
+        if "*" not in name and name not in scene and name not in OPTIONAL_SECTIONS:
             if name in REQUIRED_SECTIONS:
                 raise SceneError(f"{source}: missing required section [{name}]")
             scene[name] = _section(name, {}, fail)
+    if scene["material"]["density"] is None:  # a static scene's keys as before it
+        del scene["material"]["density"]
     scene["_base"] = str(base) if base is not None else None
     _check_combinations(scene, fail)
     scene["_source"] = source
@@ -355,6 +361,7 @@ def _check_combinations(scene, fail):
         if name.startswith("tools."):
             check_tool(name, section, model_dimension(scene["model"]["type"]), fail,
                        scene.get("_base"))
+    check_dynamics(scene, fail)
     try:
         material_from(material)
     except ValueError as err:

@@ -8,13 +8,16 @@ A run that does not complete says, on the console and in ``status.txt``:
   non-positive (where it started and where it is now), a Newton step that
   did not converge, or contact multipliers that did not settle;
 - which option would go further, for that cause and this discretization.
+
+An explicit run (:func:`explicit_stop_report`) says the time it reached
+and the explicit step that failed instead of load factors and Newton.
 """
 
 import numpy as np
 
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 
-__all__ = ["height_reduction", "stop_report"]
+__all__ = ["height_reduction", "stop_report", "explicit_stop_report"]
 
 
 def _moving_tools(scene):
@@ -103,3 +106,31 @@ def stop_report(sim, result):
     failed, advice = _cause(sim, result)
     return "\n".join([f"stopped: {_reached(sim, result)}", f"cause: {failed}",
                       f"to go further: {advice}"])
+
+
+def explicit_stop_report(sim, result):
+    """The stop report of an explicit run (:class:`~skfem_rkpm.runs.explicit_run.ExplicitResult`):
+    the time and steps reached, the failed step's cause (the point whose
+    ``det F`` went non-positive, where it started and where it is at the
+    last finished step) and what would go further."""
+    error = result.error
+    reached = (f"reached t = {result.time:.4g} s of {result.duration:.4g} s in "
+               f"{result.steps} explicit steps")
+    if isinstance(error, InvertedElementError):
+        points = np.atleast_1d(getattr(error, "points", []))
+        where = ""
+        if points.size:
+            x = _position_now(sim, result.d, int(points[0]))
+            where = (f"; that point is at x = ({', '.join(f'{v:.4g}' for v in x)}) after "
+                     f"the last finished step")
+        cause = f"det F <= 0: {error}{where}"
+        advice = ("the cells fold faster than one step resolves: a smaller step "
+                  "(--set dynamics.safety=0.5), a finer mesh, or "
+                  + ("--method rkpm" if sim.method == "fem" else
+                     "--set discretization.integration=scni (no background cells)"))
+    else:
+        cause = f"a non-finite value: {error}"
+        advice = ("the step is above the stable one or a value is out of range: a smaller "
+                  "step (--set dynamics.safety=0.5, or remove dynamics.time_step) and "
+                  "check the scene's values")
+    return "\n".join([f"stopped: {reached}", f"cause: {cause}", f"to go further: {advice}"])

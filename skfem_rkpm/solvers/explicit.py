@@ -150,8 +150,11 @@ class CentralDifference:
     def body_frequency2(self, d, state=None):
         """Largest ``ω²`` of ``M⁻¹K`` with the tangent at coefficients ``d``
         (Lanczos on ``M^(-1/2) K_sym M^(-1/2)``; the symmetric part bounds the
-        real parts of a non-symmetric tangent's eigenvalues)."""
+        real parts of a non-symmetric tangent's eigenvalues; the first from a
+        fixed random start, so that a run repeats to the last bit)."""
         K = sp.csr_matrix(self.problem.evaluate(d, state).K)
+        if self._mode is None:  # a fixed start: ARPACK's own is random, the run would not repeat
+            self._mode = np.random.default_rng(0).standard_normal(K.shape[0])
         omega2, self._mode = scaled_largest(0.5 * (K + K.T), self.mass, self._mode, tol=1e-6)
         return omega2
 
@@ -182,7 +185,10 @@ class CentralDifference:
         ``estimate_every`` steps).  ``external(time)`` gives the external
         force vector (default none).  Returns the :class:`EnergyRecord` list
         at the start, every ``output_interval`` (default: the end only) and
-        the end; ``on_output(record)`` sees each one as it is made.
+        the end; ``on_output(record)`` sees each one as it is made.  A step
+        whose forces fail raises the problem's error with the last finished
+        step's coefficients, time and step number (``error.d``, ``.time``,
+        ``.step``).
         """
         d, v = np.array(d, dtype=float), self.project(np.array(v, dtype=float))
         m, time, step = self.mass, 0.0, 0
@@ -226,9 +232,12 @@ class CentralDifference:
             try:
                 evaluation, f_c_new = self._forces(d_new, t_new / duration)
             except (InvertedElementError, NonFiniteError) as failure:
-                raise type(failure)(
+                error = type(failure)(
                     f"explicit step {step + 1} to t = {t_new:.4g} s (Δt = {h_step:.3g} s, "
-                    f"stable estimate {h:.3g} s): {failure}", failure.points) from None
+                    f"stable estimate {h:.3g} s): {failure}", failure.points)
+                # where the run got to: the last finished step
+                error.d, error.time, error.step = d.copy(), time, step
+                raise error from None
             self._commit(evaluation)
             fe_new = f_ext(t_new)
             delta = d_new - d

@@ -23,6 +23,13 @@ from .tools import Tool
 
 __all__ = ["RigidContact", "ToolSideError"]
 
+#: the largest linear map from the blocks of the point tangent to the
+#: entries of ``Gᵀ X G`` that :class:`_PointCoupling` builds (FEM billet_3d:
+#: 405 terms; an RK basis with nodal collocation has products of two rows
+#: of ``Λᵀ``, 1e3-1e4 terms per block entry, and keeps the sparse products)
+PRODUCT_MAP_ENTRIES = 2_000_000
+
+
 def _outer(a, b):
     return np.einsum("ni,nj->nij", a, b)
 
@@ -79,7 +86,9 @@ class _PointCoupling:
         self.diagonal = np.searchsorted(keys, np.arange(n, dtype=np.int64) * (n + 1))
         self.n = n
         self.G = sp.csr_matrix(pts.G)
+        self.G.sort_indices()
         self.GT = self.G.T.tocsr()
+        self._product = {}  # dim -> the linear map from the blocks to Gᵀ X G, or None
 
     def scalar(self, v):
         """The entries of ``Mᵀ diag(v) M`` on the pattern."""
@@ -87,11 +96,54 @@ class _PointCoupling:
                            minlength=len(self.cols))
 
     def tangent(self, blocks):
-        """``Gᵀ X G`` for the d × d blocks of ``X`` on the pattern."""
+        """``Gᵀ X G`` for the d × d blocks of ``X`` on the pattern.
+
+        The entries of ``Gᵀ X G`` are linear in those of the blocks: where
+        that map has at most ``PRODUCT_MAP_ENTRIES`` terms (FEM bases and
+        small RK supports, whose rows of ``G`` hold a few entries), it is
+        built once (:meth:`_product_map`) and each tangent is one sparse
+        matrix-vector product into a fixed pattern; otherwise two sparse
+        matrix products.  Both sum the same terms (in another order)."""
         dim = blocks.shape[-1]
+        if dim not in self._product:
+            self._product[dim] = self._product_map(dim)
+        product = self._product[dim]
+        if product is not None:
+            T, indices, indptr = product
+            return sp.csr_matrix((T @ blocks.ravel(), indices, indptr),
+                                 shape=(self.G.shape[1],) * 2)
         X = sp.bsr_matrix((blocks, self.indices, self.indptr),
                           shape=(dim * self.n, dim * self.n)).tocsr()
         return self.GT @ (X @ self.G)
+
+    def _product_map(self, dim):
+        """``(T, indices, indptr)``: the CSR pattern of ``Gᵀ X G`` and the
+        sparse ``T`` with ``data = T @ blocks.ravel()``, or None if ``T``
+        would have more than ``PRODUCT_MAP_ENTRIES`` terms.
+
+        Entry ``e`` of the blocks sits at row ``r`` and column ``c`` of
+        ``X`` and adds ``G[r, a] X_e G[c, b]`` to entry ``(a, b)``."""
+        G, N = self.G, self.G.shape[1]
+        block_rows = np.repeat(np.arange(self.n), np.diff(self.indptr))
+        i, j = np.divmod(np.arange(dim * dim), dim)
+        r = (dim * block_rows[:, None] + i[None, :]).ravel()  # the order of blocks.ravel()
+        c = (dim * self.indices[:, None] + j[None, :]).ravel()
+        length = np.diff(G.indptr)
+        terms = length[r] * length[c]
+        if terms.sum() > PRODUCT_MAP_ENTRIES:
+            return None
+        e = np.repeat(np.arange(len(r)), terms)
+        # the k-th term of entry e: the (k // len_c)-th entry of row r, (k % len_c)-th of c
+        k = np.arange(len(e)) - np.repeat(np.cumsum(terms) - terms, terms)
+        left = G.indptr[r][e] + k // length[c][e]
+        right = G.indptr[c][e] + k % length[c][e]
+        keys = G.indices[left].astype(np.int64) * N + G.indices[right]
+        unique, place = np.unique(keys, return_inverse=True)
+        T = sp.csr_matrix((G.data[left] * G.data[right], (place, e)),
+                          shape=(len(unique), len(r)))
+        rows, cols = np.divmod(unique, N)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=N))])
+        return T, cols.astype(np.int32), indptr.astype(np.int32)
 
 
 def _rigid_tangent(coupling, proj, slipped, law, omega_n, omega_t, mu, pts):
@@ -388,13 +440,15 @@ class RigidContact:
             self._freeze.predict(apart)
             return None
         pts = self.points
-        normal_rows = _directional(pts.G, self._normals)
-        rows = (pts.weighted_hats @ normal_rows) / pts.node_weights[:, None]
         pressed = self.trial.node_gap - self.multipliers[0] / self.omega_n
-        touching = apart & (pressed + rows @ delta < 0.0)
+        # Ĝ δ from the point displacements G δ: no sparse rows unless a node touches
+        moved = np.einsum("in,in->n", self._normals, pts.displacements(delta))
+        touching = apart & (pressed + pts.average(moved) < 0.0)
         self._freeze.predict(touching)
         if not touching.any():
             return None
+        normal_rows = _directional(pts.G, self._normals)
+        rows = (pts.weighted_hats @ normal_rows) / pts.node_weights[:, None]
         scale = self.omega_n * pts.node_weights * touching
         f = rows.T @ (scale * pressed)
         K = rows.T @ sp.diags(scale) @ rows

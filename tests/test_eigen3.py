@@ -126,3 +126,19 @@ def test_return_map_equals_lapack_path(monkeypatch):
         assert np.abs(A - A_ref).max() <= unit * (1.0 + 1.0 / e_y)
         assert np.abs(new.Cp_inv - new_ref.Cp_inv).max() <= C * EPS
         assert np.abs(new.alpha - new_ref.alpha).max() <= C * EPS
+
+
+def test_full_tangent_equals_the_tangent_at_listed_entries():
+    """The nine entries in row-major order take a broadcast path; listed in
+    another order they take the general one: the same sums, to round-off."""
+    rng = np.random.default_rng(4)
+    material = J2Material(200e3, 0.3, linear(250.0, 1e3))
+    F = _deformations(rng, 50)
+    _, _, _, point = material.stress(F, MaterialState.virgin(len(F)))
+    order = [(i, J) for J in range(3) for i in range(3)]  # column-major
+    full = material.tangent(point)  # (n, 3, 3, 3, 3)
+    listed = material.tangent(point, order)
+    rows, cols = np.array(order).T
+    again = full[:, rows, cols][:, :, rows, cols]
+    assert np.abs(listed - again).max() <= C * EPS * np.abs(full).max()
+    assert np.abs(full).max() > 1e4

@@ -114,7 +114,11 @@ class _PointCoupling:
                                  shape=(self.G.shape[1],) * 2)
         X = sp.bsr_matrix((blocks, self.indices, self.indptr),
                           shape=(dim * self.n, dim * self.n)).tocsr()
-        return self.GT @ (X @ self.G)
+        K = self.GT @ (X @ self.G)
+        # sorted, so that the sum with the solid's tangent (canonical) takes
+        # scipy's fast path and stays canonical: no sort of the larger sum
+        K.sort_indices()
+        return K
 
     def _product_map(self, dim):
         """``(T, indices, indptr)``: the CSR pattern of ``Gᵀ X G`` and the

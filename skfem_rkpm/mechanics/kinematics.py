@@ -108,6 +108,12 @@ def from_entries(P, A, model, shape):
     P_ext = P_pad[:, slot].reshape(shape + (ncomp, nrows)).transpose(2, 3, 0, 1)
     if A is None:
         return P_ext, None
+    if m == ncomp * nrows and np.array_equal(slot.ravel(), np.arange(m)):
+        # every (c, l) an entry, in row-major order (plane strain, 3D): a view
+        # of A, copied once by the assembler, not padded and gathered
+        A_points = A.reshape(n, ncomp, nrows, ncomp, nrows).transpose(0, 2, 1, 3, 4)
+        return P_ext, A_points.reshape(shape + (nrows, ncomp, ncomp, nrows)).transpose(
+            3, 2, 4, 5, 0, 1)
     A_pad = np.zeros((n, m + 1, m + 1))
     A_pad[:, :m, :m] = A
     rows = slot.T[:, :, None, None]  # (l, c) -> entry (c, l)

@@ -106,9 +106,17 @@ class SlavePoints:
         """Displacements (dim, n) of the points for coefficients ``d``."""
         return (self.G @ d).reshape(-1, self.dim).T
 
+    @cached_property
+    def hats_T(self):
+        """``Nᵀ`` (m × n) in compressed rows, formed once (``hats.T`` is a new
+        matrix object at every use, whose set-up costs more than the product)."""
+        hats_T = sp.csr_matrix(self.hats.T)
+        hats_T.sort_indices()
+        return hats_T
+
     def average(self, values):
         """Hat-weighted nodal averages ``Σ_q N_K(x_q) w_q v_q / W_K``."""
-        return (self.hats.T @ (self.weights * values)) / self.node_weights
+        return (self.hats_T @ (self.weights * values)) / self.node_weights
 
 
 def _facets(mesh, boundaries):

@@ -168,6 +168,8 @@ class SurfaceContact(RigidContact):
     plane's normal (:func:`symmetry_projection`).
     """
 
+    _PRODUCT_MAP = True  # one sparse matrix-vector product instead of two products
+
     def __init__(self, problem, tool, *args, symmetry=(), **kwargs):
         self._symmetry = None
         self._held_stick = None  # nodes held in stick by sticking() (a linear model)

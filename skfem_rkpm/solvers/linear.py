@@ -148,16 +148,24 @@ class SuperLU(Solver):
     arguments" after minutes); nested dissection factors them
     (docs/benchmarks/linear_solvers.md).  The nested dissection ordering
     and the permutation of the pattern are the symbolic analysis, reused
-    while the pattern stays; scipy exposes no other symbolic phase.
+    while the pattern stays; scipy exposes no other symbolic phase.  Below
+    ``ND_LIMIT`` the first factorization of a pattern orders it by MMD and
+    the later ones of the same pattern reuse that ordering (SuperLU's
+    ``perm_c``, its postorder included) on the permuted matrix: the same
+    factors, without MMD each time (FEM billet_3d, 802 unknowns: 3.9 against
+    4.8 ms per factorization).
     """
 
     name = "superlu"
 
     def _analyze(self, A):
         self._perm = nested_dissection(A) if A.shape[0] > ND_LIMIT else None
-        if self._perm is None:
-            return
-        # where each entry of the permuted matrix (compressed columns) comes from
+        self._nested, self._permuted = self._perm is not None, None
+        if self._perm is not None:
+            self._permutation_map(A)
+
+    def _permutation_map(self, A):
+        """Where each entry of the permuted matrix (compressed columns) comes from."""
         where = sp.csr_matrix((np.arange(1, A.nnz + 1, dtype=np.int64), A.indices, A.indptr),
                               shape=A.shape)
         where = where[self._perm][:, self._perm].tocsc()
@@ -166,17 +174,21 @@ class SuperLU(Solver):
     def _factor(self, A):
         self.fallback = False
         self._csc = A.tocsc()
-        if self._perm is None:
+        if self._permuted is None:  # the first factorization of an MMD-ordered pattern
             self._lu = splu(self._csc, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.01,
                             options=dict(SymmetricMode=True))
+            self._lu_permuted = False
+            self._perm = np.argsort(self._lu.perm_c)
+            self._permutation_map(A)
             return
         source, indices, indptr = self._permuted
         P = sp.csc_matrix((A.data[source], indices, indptr), shape=A.shape)
         self._lu = splu(P, permc_spec="NATURAL", diag_pivot_thresh=0.01,
                         options=dict(SymmetricMode=True))
+        self._lu_permuted = True
 
     def _substitute(self, b):
-        if self._perm is None or self.fallback:
+        if not self._lu_permuted or self.fallback:
             return self._lu.solve(b)
         x = np.empty_like(b)
         x[self._perm] = self._lu.solve(b[self._perm])
@@ -195,8 +207,7 @@ class SuperLU(Solver):
     def describe(self):
         if getattr(self, "fallback", False):
             return "SuperLU (COLAMD, partial pivoting)"
-        order = ("METIS nested dissection" if getattr(self, "_perm", None) is not None
-                 else "MMD")
+        order = "METIS nested dissection" if getattr(self, "_nested", False) else "MMD"
         return f"SuperLU ({order} of Aᵀ+A, symmetric mode, pivot threshold 0.01)"
 
 

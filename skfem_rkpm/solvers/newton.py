@@ -361,10 +361,11 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     reviewing = [c for c in contributions if hasattr(c, "review_status")]
     its = 0
     residuals, energies = [], []
+    solid = {}  # the solid's last evaluation: the multiplier updates keep d
     for update in range(max_augmentations + 1):
         d, ev, lam, k, res, en = _newton(problem, d, t, C, g, f_ext, fit, tol,
                                          max_iterations, log, contributions,
-                                         linear_solver, tally)
+                                         linear_solver, tally, solid)
         its, residuals, energies = its + k, residuals + res, energies + en
         worst = max((c.violation() for c in augmenting), default=0.0)
         augmented = any([c.augment() for c in augmenting])
@@ -380,21 +381,29 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
 
 
 def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
-            contributions=(), linear_solver="auto", tally=None):
+            contributions=(), linear_solver="auto", tally=None, solid=None):
     """Newton iterations of one step; returns the converged data or raises.
 
     Once the prescribed values are met, each update ``δ`` is scaled by the
     energy line search of :func:`_line_search`; near the solution the full
     step is taken and convergence stays quadratic.  ``tally["iterations"]``
-    counts the iterations, also those of an attempt that fails.
+    counts the iterations, also those of an attempt that fails.  ``solid``
+    (a dict) keeps the solid's last evaluation: a state asked for again at
+    the same ``d`` (after a multiplier update or a contact status freeze,
+    which change the contributions only) reuses it, tangent included.
     """
     tally = {"iterations": 0} if tally is None else tally
+    solid = {} if solid is None else solid
 
     def state(d):
         """``(evaluation, tangent, r, relative residual)`` at ``d``; ``tangent()``
         forms the solid's tangent (only for the states that need an update)
         and adds the contributions' ones."""
-        ev = problem.evaluate(d)
+        if "d" in solid and np.array_equal(solid["d"], d):
+            ev = solid["evaluation"]
+        else:
+            ev = problem.evaluate(d)
+            solid["d"], solid["evaluation"] = d.copy(), ev
         f_int, K_extra = ev.f_int, []
         # each force on its own sets the scale: internal and contact forces
         # may cancel each other when no load is prescribed

@@ -16,31 +16,12 @@ from skfem_rkpm.mechanics.rigid_contact import RigidContact
 from skfem_rkpm.mechanics.tools import Platen
 from skfem_rkpm.meshes import rectangle
 from skfem_rkpm.solvers.newton import Prescribed, newton_steps
-from skfem_rkpm.solvers.time_integration import Newmark, Quasistatic, hht_parameters
+from skfem_rkpm.solvers.time_integration import Newmark, Quasistatic
+from skfem_rkpm.verification.oscillators import (LinearSprings as Springs, principal_root,
+                                                  prony)
 
 E, RHO = 200e3, 7.85e-9  # MPa, t/mm³ (steel)
 EPS = np.finfo(float).eps
-
-
-class _Evaluation:
-    def __init__(self, f_int, K):
-        self.f_int, self.K = f_int, K
-
-
-class Springs:
-    """A linear spring-mass system ``f_int = K d`` as a Newton problem."""
-
-    basis = None
-
-    def __init__(self, K):
-        self.stiffness = sp.csr_matrix(K)
-        self.N = self.stiffness.shape[0]
-
-    def evaluate(self, d, state=None, tangent=True):
-        return _Evaluation(self.stiffness @ d, self.stiffness)
-
-    def commit(self, evaluation):
-        pass
 
 
 def run_springs(K, m, d0, v0, dt, steps, alpha=0.0):
@@ -50,37 +31,6 @@ def run_springs(K, m, d0, v0, dt, steps, alpha=0.0):
     result = newton_steps(problem, steps=steps, tol=1e-12, d0=d0, increment=scheme)
     assert result.completed, result.message
     return np.vstack([d0] + result.solutions), scheme, result
-
-
-def prony(y, skip=50):
-    """``(Ω̄, ξ̄)`` of a free damped oscillation sampled once per step: the
-    least-squares ``y_(n+1) = p y_n − q y_(n−1)`` of the samples after
-    ``skip`` (where HHT's third, spurious root has decayed), ``λ`` a root
-    of ``λ² − p λ + q``, ``λ = exp(Ω̄ (−ξ̄ ± i))``."""
-    y = y[skip:]
-    p, q = np.linalg.lstsq(np.c_[y[1:-1], -y[:-2]], y[2:], rcond=None)[0]
-    lam = np.roots([1.0, -p, q])[0]
-    omega = abs(np.angle(lam))
-    return omega, -np.log(abs(lam)) / omega
-
-
-def amplification(Omega, alpha):
-    """The amplification matrix of HHT-α for ``d̈ + ω² d = 0`` on
-    ``(d, Δt v, Δt² a)`` (Hilber, Hughes & Taylor 1977), from the method's
-    three equations at ``n+1``: the α-weighted equation of motion and the
-    two Newmark updates."""
-    b, g = hht_parameters(alpha)
-    lhs = np.array([[(1 + alpha) * Omega**2, 0, 1], [1, 0, -b], [0, 1, -g]])
-    rhs = np.array([[alpha * Omega**2, 0, 0], [1, 1, 0.5 - b], [0, 1, 1 - g]])
-    return np.linalg.solve(lhs, rhs)
-
-
-def principal_root(Omega, alpha):
-    """``(Ω̄, ξ̄)`` of the complex pair of eigenvalues of :func:`amplification`."""
-    lam = np.linalg.eigvals(amplification(Omega, alpha))
-    lam = lam[np.argmax(abs(lam.imag))]
-    omega = abs(np.angle(lam))
-    return omega, -np.log(abs(lam)) / omega
 
 
 @pytest.mark.parametrize("Omega", [0.1, 0.5, 1.0, 2.0])

@@ -340,3 +340,39 @@ def test_bad_settings_are_refused():
     scheme = Newmark(problem, np.ones(1), 1.0, v0=np.ones(1))
     with pytest.raises(ValueError, match="starts at"):
         newton_steps(problem, steps=2, start=0.5, increment=scheme)
+
+
+def test_axisymmetric_rod_with_its_axis_prescribed():
+    """A round RK rod (ν = 0) on the wall, its axis u_r = 0 prescribed on
+    nodal values through Newton (Eq. 3.37): d'Alembert's contact time and
+    the force ρ c0 v0 π R² on average, as for the explicit scheme; the axis
+    condition holds to Newton's gap tolerance (1e-12 of the scale) and the
+    balance closes, since the axis reactions do no work (C Δd = 0)."""
+    L, R, v0 = 10.0, 1.0, 1e4
+    c0 = np.sqrt(E / RHO)
+    mesh = MeshQuad.init_tensor(np.linspace(0, R, 3), np.linspace(0, L, 41)).with_defaults()
+    b = RKBasis(mesh, vector=True, support=2.0, integration="gauss", axisymmetric=True)
+    problem = SolidProblem(b, J2Material(E, 0.0), model="axisymmetric")
+    wall = RigidContact(problem, Platen([0.0, 0.0], [0.0, 1.0]), slaves="bottom",
+                        factor=1.0)
+    v = np.zeros(b.N)
+    v[1::2] = -v0
+    duration = 2.5 * L / c0
+    axis = Prescribed("left", 0, 0.0)
+    scheme = Newmark(problem, lumped_mass(problem.assembler, RHO), duration, v0=v,
+                     contributions=[wall], constraints=[axis.constraint(b)])
+    forces = [0.0]
+    result = newton_steps(problem, [axis], steps=100, tol=1e-10, contributions=[wall],
+                          increment=scheme,
+                          on_step=lambda *_: forces.append(wall.resultants()["platen"][1]))
+    assert result.completed, result.message
+    time = np.array([r.time for r in scheme.records])
+    force = np.array(forces)
+    assert 1.0 <= time[force > 1e-6 * force.max()].max() / (2 * L / c0) < 1.1
+    mean_force = np.trapezoid(force, time) / (2 * L / c0)
+    assert mean_force == pytest.approx(RHO * c0 * v0 * np.pi * R**2, rel=0.03)
+    C = axis.constraint(b).C
+    assert np.abs(C @ result.d).max() < 1e-12 * max(np.abs(result.d).max(), 1.0)
+    records = scheme.records
+    peak = max(r.kinetic for r in records)
+    assert max(abs(r.balance - records[0].balance) for r in records) < 1e-6 * peak

@@ -136,8 +136,8 @@ class Newmark:
         self.d = np.zeros(N) if d0 is None else _vector(d0, N, "d0").copy()
         self.v = np.zeros(N) if v0 is None else _vector(v0, N, "v0").copy()
         evaluation = problem.evaluate(self.d, tangent=False)
-        f_contact = sum((c.evaluate(self.d, 0.0, tangent=False)[0] for c in contributions),
-                        np.zeros(N))
+        # every contribution's evaluate(d, t) (contact, follower loads, force control)
+        f_contact = sum((c.evaluate(self.d, 0.0)[0] for c in contributions), np.zeros(N))
         self.f_int = evaluation.f_int + f_contact
         self.f_ext = np.zeros(N) if load is None else _vector(load(0.0), N, "load(0)")
         if a0 is None:

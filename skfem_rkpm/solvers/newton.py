@@ -438,7 +438,8 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     for it in range(1, max_iterations + 1):
         tally["iterations"] += 1
         gap = g - C @ d
-        delta = _update(current[1](), current[2], C, gap, linear_solver, contributions)
+        delta = _update(current[1](), current[2], C, gap, linear_solver, contributions,
+                        getattr(increment, "force_weight", 1.0))
         energy = abs(delta @ current[2])
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)
@@ -474,7 +475,7 @@ def _watch_status(contributions, log):
     return frozen
 
 
-def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
+def _update(K, r, C, gap, linear_solver, contributions, weight=1.0, rounds=4):
     """Newton update ``δ`` with the contact nodes it brings into touch (and,
     through ``sticking(δ)``, the slipping nodes it brings back into stick).
 
@@ -484,7 +485,9 @@ def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
     the system is solved again with them, until the touching set repeats
     (at most ``rounds`` solves more).  Without this, a node apart at the
     start of an iteration has no stiffness, the update drives it deep into
-    the tool and the line search can only take a tiny part of it.
+    the tool and the line search can only take a tiny part of it.  The
+    step's ``weight`` of the forces (``1 + α`` of an HHT-α increment)
+    scales their force and stiffness.
     """
     delta, _ = solve_constrained(K, r, C, gap, solver=linear_solver)
     if not np.all(np.isfinite(delta)):
@@ -496,6 +499,8 @@ def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
     for _ in range(rounds):
         found = [predict(delta) for predict in predictions]
         found = [x for x in found if x is not None]
+        if weight != 1.0:
+            found = [(x[0], weight * x[1], weight * x[2]) for x in found]
         key = [x[0].tobytes() for x in found]
         if not found or key == previous:
             break

@@ -13,7 +13,7 @@ residual and the tangent of the step:
   the Newmark updates; ``α = 0`` is the trapezoidal rule (``β = 1/4``,
   ``γ = 1/2``), unconditionally stable and without numerical damping.
 
-An increment has four methods, all that Newton calls:
+An increment has four methods, all that Newton calls,
 
 ``begin(t_done, t)``
     before each attempt of the step from load factor ``t_done`` to ``t``
@@ -27,7 +27,11 @@ An increment has four methods, all that Newton calls:
 ``tangent(K)``
     the tangent of that residual from the solid's and contributions' ``K``;
 ``commit()``
-    accept the last evaluated state (after the solid and the contributions).
+    accept the last evaluated state (after the solid and the contributions);
+
+and an attribute ``force_weight``, the factor of the step's forces in the
+residual (``1 + α``), by which Newton scales the contact forces it predicts
+within an update (nodes brought into touch).
 
 Load factors are times: ``time = t · duration``, so the load, the tools'
 motion and the prescribed values are functions of ``t = time / duration``,
@@ -47,6 +51,8 @@ __all__ = ["Quasistatic", "Newmark", "hht_parameters"]
 
 class Quasistatic:
     """The quasi-static increment (Eq. 4.25): ``r = f_ext − f_int``, tangent ``K``."""
+
+    force_weight = 1.0
 
     def begin(self, t_done, t):
         pass
@@ -123,6 +129,7 @@ class Newmark:
                  contributions=(), load=None, constraints=(), a0=None):
         self.beta, self.gamma = hht_parameters(alpha)
         self.alpha = float(alpha)
+        self.force_weight = 1.0 + self.alpha
         if not (np.isfinite(duration) and duration > 0):
             raise ValueError(f"duration must be a positive number of seconds, not "
                              f"{duration!r}")

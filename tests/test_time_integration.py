@@ -15,7 +15,7 @@ from skfem_rkpm.mechanics.problem import SolidProblem
 from skfem_rkpm.mechanics.rigid_contact import RigidContact
 from skfem_rkpm.mechanics.tools import Platen
 from skfem_rkpm.meshes import rectangle
-from skfem_rkpm.solvers.newton import Prescribed, newton_steps
+from skfem_rkpm.solvers.newton import Prescribed, StepperState, newton_steps
 from skfem_rkpm.solvers.time_integration import Newmark, Quasistatic
 from skfem_rkpm.verification.oscillators import (LinearSprings as Springs, principal_root,
                                                   prony)
@@ -376,3 +376,46 @@ def test_axisymmetric_rod_with_its_axis_prescribed():
     records = scheme.records
     peak = max(r.kinetic for r in records)
     assert max(abs(r.balance - records[0].balance) for r in records) < 1e-6 * peak
+
+
+def test_a_snapshot_resumes_the_run_exactly():
+    """A run stopped after 6 of 12 steps and resumed in new objects (the
+    integrator from its snapshot, the solid's and the wall's committed
+    states, Newton's stepper) ends bit for bit where the run without a stop
+    ends: HHT-α on the yielding bar on the wall, whose plastic state and
+    d, v, a and forces at t_n all enter the next step (the frictionless
+    penalty wall keeps no history; it is restored as a run would)."""
+    def build():
+        problem = bar("fem", cells=10, nu=0.3, law=perfect(200.0))
+        wall = RigidContact(problem, Platen([0.0, 0.0], [0.0, 1.0]), slaves="bottom",
+                            factor=1.0)
+        v = np.zeros(problem.N)
+        v[1::2] = -2e4
+        scheme = Newmark(problem, lumped_mass(problem.assembler, RHO),
+                         10.0 / np.sqrt(E / RHO), v0=v, alpha=-0.1, contributions=[wall])
+        return problem, wall, scheme
+
+    def run(problem, wall, scheme, targets, **options):
+        result = newton_steps(problem, steps=targets, tol=1e-10, contributions=[wall],
+                              increment=scheme, **options)
+        assert result.completed, result.message
+        return result
+
+    targets = np.linspace(0, 1, 13)[1:]
+    problem, wall, uninterrupted = build()
+    whole = run(problem, wall, uninterrupted, targets)
+    problem, wall, scheme = build()
+    stepper = StepperState()
+    half = run(problem, wall, scheme, targets[:6], stepper=stepper)
+    saved = ({k: np.copy(v) for k, v in scheme.snapshot().items()},
+             problem.state.copy(), wall.get_state())
+    problem, wall, scheme = build()
+    scheme.restore(saved[0])
+    problem.state = saved[1]
+    wall.set_state(saved[2])
+    rest = run(problem, wall, scheme, targets, d0=half.d, stepper=stepper)
+    assert len(half.history) + len(rest.history) == len(whole.history)
+    assert np.array_equal(rest.d, whole.d)
+    assert np.array_equal(scheme.v, uninterrupted.v)
+    assert np.array_equal(scheme.a, uninterrupted.a)
+    assert scheme.records[-1] == uninterrupted.records[-1]  # the energy account

@@ -219,6 +219,40 @@ class Newmark:
         self._trial = None
 
 
+    # -- checkpoints --------------------------------------------------------------
+    def snapshot(self):
+        """The state the next step depends on, as arrays and numbers (for
+        ``numpy.savez``; nothing to unpickle): time, ``d``, ``v``, ``a``, the
+        forces at ``t_n`` and the running energy account."""
+        acc = self.account
+        f_int, f_contact, f_ext = acc.forces
+        return dict(time=self.time, d=self.d, v=self.v, a=self.a, f_int=self.f_int,
+                    f_ext=self.f_ext, solid_force=f_int, contact_force=f_contact,
+                    residual=acc.r, works=np.array(acc.works), elastic=acc.elastic,
+                    residual_bound=acc.bound, alpha=self.alpha)
+
+    def restore(self, snapshot):
+        """Continue from a :meth:`snapshot` (of an integrator with the same
+        α and problem size); ``records`` restarts with the restored state."""
+        N = self.problem.N
+        if float(snapshot["alpha"]) != self.alpha:
+            raise ValueError(f"the snapshot was taken with α = {float(snapshot['alpha'])}, "
+                             f"this integrator has α = {self.alpha}")
+        arrays = {k: _vector(snapshot[k], N, f"snapshot {k!r}")
+                  for k in ("d", "v", "a", "f_int", "f_ext", "solid_force",
+                            "contact_force", "residual")}
+        self.time = float(snapshot["time"])
+        self.d, self.v, self.a = arrays["d"], arrays["v"], arrays["a"]
+        self.f_int, self.f_ext = arrays["f_int"], arrays["f_ext"]
+        acc = self.account
+        acc.time, acc.v, acc.r = self.time, self.v, arrays["residual"]
+        acc.forces = (arrays["solid_force"], arrays["contact_force"], self.f_ext)
+        acc.works = [float(w) for w in np.asarray(snapshot["works"], float)]
+        acc.elastic, acc.bound = float(snapshot["elastic"]), float(snapshot["residual_bound"])
+        self.records = [acc.record()]
+        self._trial = None
+
+
 def _vector(x, N, name):
     x = np.asarray(x, dtype=float)
     if x.shape != (N,) or not np.all(np.isfinite(x)):

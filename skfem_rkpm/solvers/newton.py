@@ -23,6 +23,7 @@ from ..approximation.constraints import ConstraintSet, nodal_constraint, weak_co
 from .constrained import solve_constrained
 from .linear import make_solver
 from .step_control import StepControl
+from .time_integration import Quasistatic
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 
 __all__ = ["Prescribed", "StepRecord", "Result", "NonConvergence", "StepperState",
@@ -182,7 +183,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                  max_iterations=20, max_cutbacks=8, log=None, d0=None,
                  contributions=(), start=0.0, on_step=None, extrapolate=True,
                  linear_solver="auto", control=None, max_augmentations=30,
-                 stepper=None):
+                 stepper=None, increment=None):
     """Drive ``problem`` from ``t = 0`` to ``t = 1`` in load steps.
 
     Parameters
@@ -245,6 +246,13 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
         control of a checkpoint: ``start`` is then ignored, and its
         ``control``, if set, replaces ``control``) and keep it up to date: it
         is updated in place after every converged step, before ``on_step``.
+    increment : optional
+        What a step solves, given the forces Newton evaluates
+        (:mod:`skfem_rkpm.solvers.time_integration`): quasi-static by
+        default (:class:`~skfem_rkpm.solvers.time_integration.Quasistatic`),
+        or a time step with inertia
+        (:class:`~skfem_rkpm.solvers.time_integration.Newmark`, Eq. 3.38),
+        whose load factor is ``time / duration``.
 
     Returns
     -------
@@ -260,6 +268,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     C = rows.C  # shared corners: dependent rows removed
     reactions_fit = _Reactions(C)
     linear_solver = make_solver(linear_solver)
+    increment = Quasistatic() if increment is None else increment
     described = None
     if control is None:
         spacing = np.diff(np.concatenate([[0.0], targets]))
@@ -290,13 +299,14 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
                 t = t_done + dt
                 g_t, f_t = g(t), f_ext(t)
                 starts = ([d + dt * rate, d] if extrapolate and rate is not None else [d])
+                increment.begin(t_done, t)
                 for guess in starts:
                     tally["attempts"] += 1
                     try:
                         d_new, ev, lam, its, res, en = _augmented_newton(
                             problem, guess, t, C, g_t, f_t, reactions_fit, tol,
                             max_iterations, log, contributions, linear_solver, tally,
-                            max_augmentations)
+                            max_augmentations, increment)
                     except (NonConvergence, InvertedElementError, RuntimeError,
                             np.linalg.LinAlgError) as err:
                         log(f"step {step_index + 1}: t = {t:.6g} failed ({err})")
@@ -322,6 +332,7 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
             for contribution in contributions:
                 contribution.commit()
                 reactions.update(contribution.resultants())
+            increment.commit()
             control.converged(dt, its, changes, cut=cut > 0)
             rate = (d_new - d) / (t - t_done)
             d, t_done = d_new, t
@@ -348,7 +359,8 @@ def _solver_line(linear_solver):
 
 
 def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
-                      contributions, linear_solver, tally, max_augmentations):
+                      contributions, linear_solver, tally, max_augmentations,
+                      increment=None):
     """Newton solves of one step, each followed by an update of the
     multipliers of the contributions with ``augment()`` (Uzawa), until none
     needs one and none has a frozen contact status to correct
@@ -365,7 +377,7 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     for update in range(max_augmentations + 1):
         d, ev, lam, k, res, en = _newton(problem, d, t, C, g, f_ext, fit, tol,
                                          max_iterations, log, contributions,
-                                         linear_solver, tally, solid)
+                                         linear_solver, tally, solid, increment)
         its, residuals, energies = its + k, residuals + res, energies + en
         worst = max((c.violation() for c in augmenting), default=0.0)
         augmented = any([c.augment() for c in augmenting])
@@ -381,7 +393,8 @@ def _augmented_newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
 
 
 def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
-            contributions=(), linear_solver="auto", tally=None, solid=None):
+            contributions=(), linear_solver="auto", tally=None, solid=None,
+            increment=None):
     """Newton iterations of one step; returns the converged data or raises.
 
     Once the prescribed values are met, each update ``δ`` is scaled by the
@@ -394,6 +407,7 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     """
     tally = {"iterations": 0} if tally is None else tally
     solid = {} if solid is None else solid
+    increment = Quasistatic() if increment is None else increment
 
     def state(d):
         """``(evaluation, tangent, r, relative residual)`` at ``d``; ``tangent()``
@@ -415,9 +429,9 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
             K_extra.append(K_c)
 
         def tangent():
-            return sum(K_extra, ev.K)
+            return increment.tangent(sum(K_extra, ev.K))
 
-        r = f_ext - f_int
+        r, ref = increment.residual(d, f_ext, f_int, ev, ref)
         rel = np.linalg.norm(fit.out_of_balance(r)) / ref
         if not np.isfinite(rel):
             bad = np.flatnonzero(~np.isfinite(r))
@@ -434,7 +448,8 @@ def _newton(problem, d, t, C, g, f_ext, fit, tol, max_iterations, log,
     for it in range(1, max_iterations + 1):
         tally["iterations"] += 1
         gap = g - C @ d
-        delta = _update(current[1](), current[2], C, gap, linear_solver, contributions)
+        delta = _update(current[1](), current[2], C, gap, linear_solver, contributions,
+                        getattr(increment, "force_weight", 1.0))
         energy = abs(delta @ current[2])
         first_energy = energy if first_energy is None else first_energy
         energies.append(energy / first_energy if first_energy > 0 else 0.0)
@@ -470,7 +485,7 @@ def _watch_status(contributions, log):
     return frozen
 
 
-def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
+def _update(K, r, C, gap, linear_solver, contributions, weight=1.0, rounds=4):
     """Newton update ``δ`` with the contact nodes it brings into touch (and,
     through ``sticking(δ)``, the slipping nodes it brings back into stick).
 
@@ -480,7 +495,9 @@ def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
     the system is solved again with them, until the touching set repeats
     (at most ``rounds`` solves more).  Without this, a node apart at the
     start of an iteration has no stiffness, the update drives it deep into
-    the tool and the line search can only take a tiny part of it.
+    the tool and the line search can only take a tiny part of it.  The
+    step's ``weight`` of the forces (``1 + α`` of an HHT-α increment)
+    scales their force and stiffness.
     """
     delta, _ = solve_constrained(K, r, C, gap, solver=linear_solver)
     if not np.all(np.isfinite(delta)):
@@ -492,6 +509,8 @@ def _update(K, r, C, gap, linear_solver, contributions, rounds=4):
     for _ in range(rounds):
         found = [predict(delta) for predict in predictions]
         found = [x for x in found if x is not None]
+        if weight != 1.0:
+            found = [(x[0], weight * x[1], weight * x[2]) for x in found]
         key = [x[0].tobytes() for x in found]
         if not found or key == previous:
             break

@@ -27,8 +27,8 @@ def ring_problem():
 
 
 def block_problem():
-    """A unit cube of 5 x 5 x 5 x 6 tetrahedra, SCNI, radial support 2."""
-    basis = RKBasis(box(1.0, 1.0, 1.0, 5, 5, 5, kind="tet"), vector=True, support=2.0,
+    """A unit cube of 4 x 4 x 4 x 6 tetrahedra, SCNI, radial support 2."""
+    basis = RKBasis(box(1.0, 1.0, 1.0, 4, 4, 4, kind="tet"), vector=True, support=2.0,
                     integration="scni")
     return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), "3d")
 
@@ -72,7 +72,7 @@ def test_clustered_tangent_equals_the_per_point_tangent(make):
     reference = assembler.matrix(assembler.local_bilinear(A_ext))
     bound = 2 * sum_bound(magnitude(assembler, A_ext).data, L.dim**2 * L.dx.shape[0])
     x = np.asarray(problem.basis.global_coordinates()).reshape(-1, L.dx.shape[0])
-    for size in (2, 8, 32):
+    for size in (4, 16):
         tangent = ClusteredTangent(assembler, x, size)
         K = tangent.matrix(A_ext)
         assert np.array_equal(K.indptr, reference.indptr)
@@ -100,8 +100,7 @@ def test_a_wrong_scatter_is_seen():
     bound = 2 * sum_bound(magnitude(assembler, A_ext).data, L.dim**2 * L.dx.shape[0])
     x = np.asarray(problem.basis.global_coordinates()).reshape(-1, L.dx.shape[0])
     tangent = ClusteredTangent(assembler, x, 8)
-    tangent._dx[0, 0] = 0.0  # the weight of one point lost
-    tangent.layout.dx[0, 0] = 0.0
+    tangent.groups[0].layout.dx[0, 0] = 0.0  # the weight of one point lost
     K = tangent.matrix(A_ext)
     assert np.linalg.norm(K.data - reference.data) > 1e6 * np.linalg.norm(bound)
 

@@ -39,7 +39,7 @@ a time do the work of the scatter again; the clusters take 1.5-2 ms.
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly import STORED_ENTRIES, Assembler, Layout
+from ..assembly import Assembler, Layout
 
 __all__ = ["point_clusters", "cluster_cost", "best_cluster_size", "ClusteredTangent",
            "nodal_tangent", "CLUSTER_SIZES"]
@@ -51,9 +51,11 @@ CLUSTER_SIZES = (1, 2, 4, 8, 16, 32)
 #: about 2.5 ns per scattered entry, 0.1 ns per multiply-add in the
 #: products of the cluster sizes that win)
 SCATTER_WEIGHT = 25.0
-#: no cluster layout with more local entries than this (int32 scatter map,
-#: float64 local matrices): the per-point assembly is used beyond
+#: no cluster layout with more local entries than this (float64 local
+#: matrices and their scatter): the per-point assembly is used beyond
 MAX_ENTRIES = 2**27
+#: clusters whose unions differ by at most this ratio share one padded width
+BUCKET_RATIO = 1.2
 
 
 def point_clusters(x, size):
@@ -120,38 +122,109 @@ def _unions(element_nodes, members):
     return union, count, place
 
 
+def _buckets(count):
+    """Clusters grouped by the size of their unions: sorted, a new group
+    whenever a union is more than :data:`BUCKET_RATIO` times the group's
+    first, so that padding every union of a group to the group's largest
+    wastes little.  Returns a list of cluster numbers per group."""
+    order = np.argsort(count, kind="stable")
+    groups, first = [], 0
+    for k in range(1, len(order) + 1):
+        if k == len(order) or count[order[k]] > BUCKET_RATIO * count[order[first]]:
+            groups.append(order[first:k])
+            first = k
+    return groups
+
+
 def cluster_cost(element_nodes, x, size, ncomp, dim):
     """Estimated cost of the cluster assembly with clusters of ``size``:
     ``(local entries, multiply-adds, members)``; the time is taken as
     ``SCATTER_WEIGHT · entries + multiply-adds``."""
     members = point_clusters(x, size)
     _, count, _ = _unions(element_nodes, members)
-    width = int(count.max())
-    entries = len(members) * (width * ncomp) ** 2
-    products = entries * dim * size
-    return entries, products, members
+    entries = sum(len(g) * (int(count[g].max()) * ncomp) ** 2 for g in _buckets(count))
+    return entries, entries * dim * size, members
 
 
 def best_cluster_size(element_nodes, x, ncomp, dim):
     """The size of :data:`CLUSTER_SIZES` of least estimated cost
     (:func:`cluster_cost`) within :data:`MAX_ENTRIES`, and its clusters
     (1 and None: the per-point assembly)."""
-    best = (None, 1, None)
+    nloc, npoints = element_nodes.shape
+    single = npoints * (nloc * ncomp) ** 2
+    best = (SCATTER_WEIGHT * single + single * dim, 1, None)
     for size in CLUSTER_SIZES[1:]:
         entries, products, members = cluster_cost(element_nodes, x, size, ncomp, dim)
         cost = SCATTER_WEIGHT * entries + products
-        if size == CLUSTER_SIZES[1]:
-            nloc = element_nodes.shape[0]
-            single = element_nodes.shape[1] * (nloc * ncomp) ** 2
-            best = (SCATTER_WEIGHT * single + single * dim, 1, None)
         if entries <= MAX_ENTRIES and cost < best[0]:
             best = (cost, size, members)
     return best[1], best[2]
 
 
+class _Group:
+    """Clusters whose unions are padded to one width: their layout, the
+    assembler of their local matrices and the scatter of these into the
+    tangent's CSR data (a sparse 0/1 matrix, entries of no pattern place
+    left out)."""
+
+    def __init__(self, L, members, union, place, cluster, slot, clusters):
+        ncl, size = len(clusters), members.shape[1]
+        width = union.shape[0]
+        dim = L.dim
+        self.points = np.where(members[clusters] >= 0, members[clusters], 0)
+        valid = members[clusters] >= 0
+        dx = np.where(valid, L.dx[self.points, 0], 0.0)
+        # the points of these clusters, their union places and slots
+        local = np.full(members.shape[0], -1, dtype=np.intp)
+        local[clusters] = np.arange(ncl)
+        mine = local[cluster] >= 0
+        flat = ((place[:, mine] * ncl + local[cluster[mine]][None, :]) * size
+                + slot[mine][None, :]).ravel()
+
+        def gather(grads):
+            out = np.zeros((dim, width * ncl * size))
+            for d in range(dim):
+                out[d] = np.bincount(flat, weights=grads[d, :, mine, 0].T.ravel(),
+                                     minlength=out.shape[1])
+            return out.reshape(dim, width, ncl, size)
+
+        trial = gather(L.trial_grads)
+        test = trial if L.test_grads is L.trial_grads else gather(L.test_grads)
+        self.union = np.ascontiguousarray(union[:, clusters])
+        self.layout = Layout(self.union, np.zeros((width, ncl, size)), trial, test, dx,
+                             L.ncomp, L.nscalar)
+        self.assembler = Assembler(self.layout, pattern=False)
+        self.local = None
+
+    def set_scatter(self, keys, order, n, nnz):
+        """The scatter into the CSR data whose sorted keys ``row n + col``
+        are ``keys`` (``order``: their places, or None if in place)."""
+        c = self.layout.ncomp
+        dofs = c * self.union.T.astype(np.int64)[:, :, None] + np.arange(c)  # (ncl, w, c)
+        ncl, width = dofs.shape[:2]
+        # the order of the local matrices: (cluster, a, c_a, c_b, b)
+        wanted = (dofs.reshape(ncl, width * c, 1) * n
+                  + dofs.transpose(0, 2, 1).reshape(ncl, 1, c * width)).ravel()
+        found = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+        hit = np.flatnonzero(keys[found] == wanted)
+        found = found[hit] if order is None else order[found[hit]]
+        self.entries = wanted.size
+        self.scatter = sp.csr_matrix((np.ones(len(hit)), (found, hit)),
+                                     shape=(nnz, wanted.size))
+
+    def add_to(self, data, C):
+        """Add this group's share of the tangent of ``C`` to ``data``."""
+        Cg = C if C.ndim == 4 else C[..., 0][..., self.points]
+        self.local = self.assembler.local_bilinear(Cg, out=self.local)
+        data += self.scatter @ self.local.reshape(-1)
+
+
 class ClusteredTangent:
     """``Bᵀ D B`` of a one-point-per-cell :class:`~skfem_rkpm.assembly.Assembler`,
     summed over clusters of points into that assembler's sparsity pattern.
+
+    The clusters are grouped by the size of their unions (:func:`_buckets`),
+    each group padded to its largest union.
 
     Parameters
     ----------
@@ -170,88 +243,47 @@ class ClusteredTangent:
             raise ValueError("ClusteredTangent needs a square assembler with one "
                              f"quadrature point per cell, not {L.dx.shape[1]}")
         self.assembler = assembler
-        c, dim = L.ncomp, L.dim
         if size is None:
-            size, members = best_cluster_size(L.element_nodes, x, c, dim)
+            size, members = best_cluster_size(L.element_nodes, x, L.ncomp, L.dim)
         else:
             members = point_clusters(x, size)
         self.size, self.members = size, members
         union, count, place = _unions(L.element_nodes, members)
         self.count = count
-        ncl, nu = members.shape[0], union.shape[0]
-        points = np.where(members >= 0, members, 0)
-        self._points = points
-        self._dx = np.where(members >= 0, L.dx[points, 0], 0.0)
-        cluster = np.empty(L.dx.shape[0], dtype=np.intp)
-        slot = np.empty(L.dx.shape[0], dtype=np.intp)
+        npoints = L.dx.shape[0]
+        cluster = np.empty(npoints, dtype=np.intp)
+        slot = np.empty(npoints, dtype=np.intp)
         valid = members >= 0
         cluster[members[valid]] = np.nonzero(valid)[0]
         slot[members[valid]] = np.nonzero(valid)[1]
-        # flat place (slot in union, cluster, point slot) of every local function
-        flat = (place * ncl + cluster[None, :]) * size + slot[None, :]
-
-        def gather(grads):
-            out = np.zeros((dim, nu * ncl * size))
-            for d in range(dim):
-                out[d] = np.bincount(flat.ravel(), weights=grads[d, :, :, 0].ravel(),
-                                     minlength=out.shape[1])
-            return out.reshape(dim, nu, ncl, size)
-
-        trial = gather(L.trial_grads)
-        test = trial if L.test_grads is L.trial_grads else gather(L.test_grads)
-        values = np.zeros((nu, ncl, size))
-        self.layout = Layout(union, values, trial, test, self._dx, c, L.nscalar)
-        self._inner = Assembler(self.layout, pattern=False)
-        self._scatter = self._scatter_map(union)
-        self._local = None
-
-    @property
-    def entries(self):
-        """Local entries summed per tangent."""
-        return self._scatter.size
-
-    def _scatter_map(self, union):
-        """Place in the assembler's CSR data of every cluster entry (cluster,
-        a, c_a, c_b, b), or ``nnz`` (dropped) where the pattern has none."""
-        scatter, nnz, indptr, cols = self.assembler._pattern_parts()
+        self.groups = [_Group(L, members, union[:int(count[g].max())], place, cluster,
+                              slot, g) for g in _buckets(count)]
+        _, nnz, indptr, cols = assembler._pattern_parts()
         self._pattern = (nnz, indptr, cols)
-        n = self.assembler.N
+        n = assembler.N
         rows = np.repeat(np.arange(len(indptr) - 1, dtype=np.int64), np.diff(indptr))
         keys = rows * n + cols
         order = None
         if np.any(np.diff(keys) <= 0):
             order = np.argsort(keys, kind="stable")
             keys = keys[order]
-        c = self.layout.ncomp
-        dofs = (c * union.T.astype(np.int64)[:, :, None] + np.arange(c))  # (ncl, nu, c)
-        ncl, nu = dofs.shape[:2]
-        # the order of the local matrices: (cluster, a, c_a, c_b, b)
-        wanted = (dofs.reshape(ncl, nu * c, 1) * n
-                  + dofs.transpose(0, 2, 1).reshape(ncl, 1, c * nu)).ravel()
-        found = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
-        hit = keys[found] == wanted
-        if order is not None:
-            found = order[found]
-        out = np.where(hit, found, nnz)
-        # np.bincount reads intp: int32 (half the bytes) only for large maps
-        return out.astype(np.int32 if out.size > STORED_ENTRIES and nnz < 2**31 - 1
-                          else np.intp)
+        for group in self.groups:
+            group.set_scatter(keys, order, n, nnz)
 
-    def _cluster_tangent(self, C):
-        """``C`` per point (c, dim, c, dim, ncells, 1) as per cluster point
-        (c, dim, c, dim, nclusters, size); a constant ``C`` as it is."""
-        C = np.asarray(C, dtype=float)
-        if C.ndim == 4:
-            return C
-        return C[..., 0][..., self._points]
+    @property
+    def entries(self):
+        """Local entries computed per tangent (those of no pattern place included)."""
+        return sum(g.entries for g in self.groups)
 
     def matrix(self, C):
         """The tangent ``∫ ∂_l N_a C_{c l d m} ∂_m N_b`` in the assembler's
         pattern; ``C`` as for :meth:`Assembler.bilinear`."""
-        self._local = self._inner.local_bilinear(self._cluster_tangent(C), out=self._local)
+        C = np.asarray(C, dtype=float)
         nnz, indptr, cols = self._pattern
-        data = np.bincount(self._scatter, weights=self._local.ravel(), minlength=nnz + 1)
-        return sp.csr_matrix((data[:nnz], cols, indptr), shape=self.assembler.shape)
+        data = np.zeros(nnz)
+        for group in self.groups:
+            group.add_to(data, C)
+        return sp.csr_matrix((data, cols, indptr), shape=self.assembler.shape)
 
 
 def nodal_tangent(assembler, x):

@@ -8,14 +8,13 @@ the scene's Gauss+VCI integration and with ``discretization.integration =
 * *whole run*: CPU seconds (user + sys) of the whole process, median of
   ``--repeat`` fresh processes (:func:`_whole_runs.run_scene`): imports, mesh,
   basis, every Newton attempt, output;
-* *by part*: one more run under cProfile, whose cumulative times are split
-  into the material update (return map and consistent tangent), the force
-  assembly (``F`` from the coefficients and ``∫ ∇̃Ψ · P``), the tangent
-  (local products and scatter, stabilization added), the contact (force and
-  tangent), the linear solves, and the rest (line search bookkeeping,
-  output, setup, imports), in ms per Newton iteration (all attempts).
-  cProfile slows the many small calls most: the split is a guide, the whole
-  runs are the measurement.
+* *by part*: one more run with CPU timers around the functions of
+  :data:`PARTS`: the material update (return map and consistent tangent),
+  the force assembly (``F`` from the coefficients and ``∫ ∇̃Ψ · P``), the
+  tangent (local products and scatter, stabilization added), the contact
+  (force and tangent), the linear solves, and the rest of the process
+  (kinematics, line search, output, setup, imports), in ms per Newton
+  iteration (all attempts).
 
 ``--source DIR`` runs the ``skfem_rkpm`` package in ``DIR`` instead (e.g.
 ``git archive COMMIT skfem_rkpm | tar -x -C DIR``), to measure an earlier
@@ -26,7 +25,7 @@ Run:  python benchmarks/scni_cost.py [--cases ring upsetting billet] [--repeat 3
 
 import argparse
 import os
-import pstats
+import json
 import statistics
 import subprocess
 import sys
@@ -39,44 +38,71 @@ SCENES = {"ring": ("ring", ["tools.platen.friction=0.15"]),
           "upsetting": ("upsetting", []),
           "billet": ("billet_3d", [])}
 SCHEMES = {"Gauss+VCI": [], "SCNI": ['discretization.integration="scni"']}
-#: the parts of an iteration: (module file, function) whose cumulative times add up
+#: the parts of an iteration: (module, class or None, function) timed in them
 PARTS = {
-    "material": [("materials.py", "stress"), ("materials.py", "tangent")],
-    "force": [("assembly.py", "gradient"), ("assembly.py", "linear")],
-    "tangent": [("problem.py", "_tangent_matrix"), ("stabilization.py", "add_to")],
-    "contact": [("rigid_contact.py", "evaluate"), ("surface_contact.py", "evaluate")],
-    "solve": [("constrained.py", "solve_constrained")],
+    "material": [("mechanics.materials", "J2Material", "stress"),
+                 ("mechanics.materials", "J2Material", "tangent")],
+    "force": [("assembly", "Assembler", "gradient"), ("assembly", "Assembler", "linear")],
+    "tangent": [("mechanics.problem", "SolidProblem", "_tangent_matrix"),
+                ("mechanics.stabilization", "Stabilization", "add_to")],
+    "contact": [("mechanics.rigid_contact", "RigidContact", "evaluate"),
+                ("mechanics.surface_contact", "SurfaceContact", "evaluate")],
+    "solve": [("solvers.newton", None, "solve_constrained")],
 }
 
+#: runs ``skfem-rkpm`` (the arguments after the output path) with the
+#: functions of PARTS wrapped in CPU timers (only the outermost of nested
+#: timed calls counts), and writes the seconds of each part, the whole
+#: process's CPU seconds and the tangents formed as JSON to the output path
+_TIMED = """
+import importlib, json, runpy, sys, time
+parts, path = json.loads(sys.argv[1]), sys.argv[2]
+sys.argv = ['skfem-rkpm'] + sys.argv[3:]
+seconds = {part: 0.0 for part in parts}
+active = [False]
+calls = {'tangents': 0}
 
-def profiled(scene, settings, folder, profile):
-    """One run of ``scene`` under cProfile into ``profile``."""
-    command = [sys.executable, "-m", "cProfile", "-o", str(profile), "-m",
-               "skfem_rkpm.runs.cli", "run", scene, "--quiet", "--out", str(folder),
-               "--set", "output.fields=false", "--set", "output.figures=false"]
+def timed(part, fn, count):
+    def wrapper(*args, **kwargs):
+        if active[0]:
+            return fn(*args, **kwargs)
+        active[0] = True
+        start = time.process_time()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            seconds[part] += time.process_time() - start
+            active[0] = False
+            calls['tangents'] += count
+    return wrapper
+
+for part, functions in parts.items():
+    for module, owner, name in functions:
+        m = importlib.import_module('skfem_rkpm.' + module)
+        target = m if owner is None else getattr(m, owner)
+        if name in vars(target):
+            setattr(target, name, timed(part, vars(target)[name], name == '_tangent_matrix'))
+try:
+    runpy.run_module('skfem_rkpm.runs.cli', run_name='__main__')
+except SystemExit:
+    pass
+json.dump({'parts': seconds, 'total': time.process_time(), **calls}, open(path, 'w'))
+"""
+
+
+def timed_run(scene, settings, folder, output):
+    """One run of ``scene`` with its parts timed (:data:`_TIMED`): the CPU
+    seconds of each part of :data:`PARTS`, of the whole process, and the
+    number of tangents formed."""
+    command = [sys.executable, "-c", _TIMED, json.dumps(PARTS), str(output), "run", scene,
+               "--quiet", "--out", str(folder), "--set", "output.fields=false",
+               "--set", "output.figures=false"]
     for setting in settings:
         command += ["--set", setting]
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
     subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL,
                    stderr=subprocess.DEVNULL)
-
-
-def split(profile):
-    """Cumulative seconds of every part of :data:`PARTS`, and the total.
-
-    Of several functions of one name in one file (a nested ``stress`` of a
-    hardening table inside ``J2Material.stress``) the largest counts."""
-    stats = pstats.Stats(str(profile)).stats
-    found = {}
-    for (path, _, name), (_, _, _, cumulative, _) in stats.items():
-        for part, functions in PARTS.items():
-            for f, n in functions:
-                if path.endswith(os.sep + f) and name == n:
-                    found[(f, n)] = max(found.get((f, n), 0.0), cumulative)
-    out = {part: sum(found.get(fn, 0.0) for fn in functions)
-           for part, functions in PARTS.items()}
-    total = max(row[3] for row in stats.values())
-    return out, total
+    return json.loads(Path(output).read_text())
 
 
 def main():
@@ -104,9 +130,9 @@ def main():
                 times = [run_scene(scene, "rkpm", settings + extra, folder, args.limit)[0]
                          for _ in range(args.repeat)]
                 _, out = history(folder)
-                profile = Path(tmp) / f"{case}-{scheme}.prof".replace("+", "_")
-                profiled(scene, settings + extra, folder, profile)
-                parts, total = split(profile)
+                timing = timed_run(scene, settings + extra, folder,
+                                   Path(tmp) / f"{case}-{scheme}.json".replace("+", "_"))
+                parts, total = timing["parts"], timing["total"]
                 n = out["all iterations"]
                 ms = {k: 1e3 * v / n for k, v in parts.items()}
                 ms["rest"] = 1e3 * (total - sum(parts.values())) / n

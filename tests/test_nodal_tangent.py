@@ -1,11 +1,14 @@
 """The nodal tangent summed over clusters of particles
-(:mod:`skfem_rkpm.mechanics.nodal_tangent`) against the per-point assembly:
-the same sparsity pattern and the same entries to round-off, on the ring
-(axisymmetric, box supports of 3 spacings, stabilized SCNI) and on a 3D block
-of tetrahedra, in a plastic state (consistent tangent per particle)."""
+(:mod:`skfem_rkpm.mechanics.nodal_tangent`) against the per-point assembly
+and the sparse products ``Bᵀ D B`` and ``Bᵀ (w P)`` of the smoothed
+gradients: the same sparsity pattern and the same entries to round-off, on
+the ring (axisymmetric, box supports of 3 spacings, stabilized SCNI) and on a
+3D block of tetrahedra, in a plastic state (consistent tangent per
+particle); the 3D stabilized tangent against central differences."""
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from skfem_rkpm import RKBasis
 from skfem_rkpm.assembly import Assembler, Layout
@@ -33,9 +36,10 @@ def block_problem():
     return SolidProblem(basis, J2Material(288e3, 0.3, perfect(100.0)), "3d")
 
 
-def plastic_tangent(problem, seed=0):
+def plastic_tangent(problem, seed=0, stress=False):
     """The per-point consistent tangent ``A_ext`` after a 30 % compression
-    with a random perturbation (every particle plastic)."""
+    with a random perturbation (every particle plastic); with ``stress``
+    also ``P_ext``."""
     X = problem.basis.nodes
     u = np.vstack([(1 / np.sqrt(0.7) - 1) * X[:-1], -0.3 * X[-1:]])
     u += 1e-3 * np.ptp(X) * np.random.default_rng(seed).uniform(-1, 1, u.shape)
@@ -43,7 +47,24 @@ def plastic_tangent(problem, seed=0):
     F = deformation_gradient(problem.assembler.gradient(d), problem.model)
     P, _, state, A = problem.material.update(F, problem.state, entries=problem.entries)
     assert np.all(state.alpha > 0)
-    return d, from_entries(problem._at_entries(P), A, problem.model, problem.shape)[1]
+    P_ext, A_ext = from_entries(problem._at_entries(P), A, problem.model, problem.shape)
+    return (d, A_ext, P_ext) if stress else (d, A_ext)
+
+
+def smoothed_gradient_matrix(layout):
+    """``B``: the (smoothed) gradients of every point as one sparse matrix,
+    row ``(point c + comp) dim + l``, column dof ``c I + comp``."""
+    c, dim = layout.ncomp, layout.dim
+    nloc, npoints = layout.element_nodes.shape
+    G = layout.trial_grads[..., 0]  # (dim, nloc, npoints)
+    shape = (dim, nloc, npoints, c)
+    rows = ((np.arange(npoints)[None, None, :, None] * c + np.arange(c)) * dim
+            + np.arange(dim)[:, None, None, None])
+    cols = c * layout.element_nodes[None, :, :, None] + np.arange(c)
+    return sp.csr_matrix((np.broadcast_to(G[..., None], shape).ravel(),
+                          (np.broadcast_to(rows, shape).ravel(),
+                           np.broadcast_to(cols, shape).ravel())),
+                         shape=(npoints * c * dim, c * layout.nscalar))
 
 
 def magnitude(assembler, A_ext):
@@ -68,9 +89,19 @@ def test_clustered_tangent_equals_the_per_point_tangent(make):
     problem = make()
     assembler = problem.assembler
     L = assembler.layout
-    d, A_ext = plastic_tangent(problem)
+    d, A_ext, P_ext = plastic_tangent(problem, stress=True)
     reference = assembler.matrix(assembler.local_bilinear(A_ext))
     bound = 2 * sum_bound(magnitude(assembler, A_ext).data, L.dim**2 * L.dx.shape[0])
+    # the internal force is B_smoothᵀ (w P): the sparse product, sums of
+    # (points x dim) terms, against the assembler's
+    B = smoothed_gradient_matrix(L)
+    wP = (P_ext[..., 0] * L.dx[:, 0]).transpose(2, 0, 1).ravel()
+    f_bound = 2 * sum_bound(abs(B).T @ np.abs(wP), L.dim * L.dx.shape[0])
+    assert np.all(np.abs(B.T @ wP - assembler.linear(P_ext)) <= f_bound)
+    # and the tangent the sparse product Bᵀ D B
+    D = sp.block_diag(list(A_ext[..., 0].transpose(4, 0, 1, 2, 3).reshape(
+        L.dx.shape[0], L.ncomp * L.dim, -1) * L.dx[:, :, None]), format="csr")
+    assert np.all(np.abs((B.T @ D @ B - reference).toarray()) <= 2 * bound.max())
     x = np.asarray(problem.basis.global_coordinates()).reshape(-1, L.dx.shape[0])
     for size in (4, 16):
         tangent = ClusteredTangent(assembler, x, size)

@@ -21,9 +21,11 @@ map) plus a small random perturbation.  Timed per scheme, median of ``--repeat``
 (CPU time, ``time.process_time``, one BLAS thread):
 
 * *material*: ``J2Material.update`` at every material point;
-* *assembly*: internal force and tangent (``assembler.linear``,
-  ``local_bilinear``, ``matrix``), plus the stabilization product and sum
-  for stabilized SCNI;
+* *assembly*: internal force and tangent as ``SolidProblem`` assembles
+  them (``assembler.linear``, ``SolidProblem._tangent_matrix``: per point,
+  or for nodal integration by clusters of particles,
+  :mod:`skfem_rkpm.mechanics.nodal_tangent`), plus the stabilization force
+  and its sum into the tangent for stabilized SCNI;
 * *evaluate*: ``SolidProblem.evaluate`` as a whole (kinematics, material,
   assembly, checks) with its tangent formed (``.K``: the tangent is formed
   on demand);
@@ -165,19 +167,21 @@ def time_iteration(case, n, scheme, repeat):
 
     start = time.process_time()
     problem = solid_problem(case, n, scheme)
+    if hasattr(problem, "_nodal_clusters"):  # the clusters of the nodal tangent
+        problem._nodal_clusters()
     setup = time.process_time() - start
     d = compressed(problem)
     asm = problem.assembler
     F = deformation_gradient(asm.gradient(d), problem.model)
     P, _, _, A = problem.material.update(F, problem.state, entries=problem.entries)
     P_ext, A_ext = from_entries(problem._at_entries(P), A, problem.model, problem.shape)
-    S = None if problem.stabilization is None else problem.stabilization.matrix
+    S = problem.stabilization
 
-    def assembly():
+    def assembly():  # as SolidProblem.evaluate assembles them
         f = asm.linear(P_ext)
-        K = asm.matrix(asm.local_bilinear(A_ext))
+        K = problem._tangent_matrix(A_ext)
         if S is not None:
-            f, K = f + S @ d, K + S
+            f, K = f + S.force(d), S.add_to(K)
         return f, K
 
     ev = problem.evaluate(d)

@@ -24,6 +24,7 @@ from ..assembly import Assembler
 from .kinematics import (deformation_gradient, entries, from_entries,
                          inverse_and_determinant)
 from .materials import MaterialState, ReturnMapError
+from .nodal_tangent import nodal_tangent
 from .stabilization import Stabilization, checked_moduli
 
 __all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
@@ -110,6 +111,7 @@ class SolidProblem:
         self._rows = np.array([i for i, _ in self.entries])
         self._cols = np.array([J for _, J in self.entries])
         self._local = None  # local tangent matrices, reused by every evaluation
+        self._clusters = None  # the nodal tangent by clusters of points (False: none)
         self.stabilization = self._stabilization()
 
     def _stabilization(self):
@@ -267,11 +269,27 @@ class SolidProblem:
         inside the products of :meth:`Assembler.local_bilinear`).
 
         The local matrices are written into the same buffer every time:
-        fresh memory of that size costs more to touch than to compute.
+        fresh memory of that size costs more to touch than to compute.  With
+        nodal integration (one point per particle) the tangent is summed over
+        clusters of particles (:mod:`~skfem_rkpm.mechanics.nodal_tangent`),
+        where that costs less: the same matrix to round-off.
         """
+        if rank_one is None and self._nodal_clusters():
+            return self._clusters.matrix(A_ext)
         self._local = self.assembler.local_bilinear(A_ext, out=self._local,
                                                     rank_one=rank_one)
         return self.assembler.matrix(self._local)
+
+    def _nodal_clusters(self):
+        """The :class:`~skfem_rkpm.mechanics.nodal_tangent.ClusteredTangent`
+        of a nodally integrated basis, built at the first tangent, or None."""
+        if self._clusters is None:
+            self._clusters = False
+            if getattr(self.basis, "nodal_quadrature", None) is not None:
+                x = np.asarray(self.basis.global_coordinates()).reshape(
+                    -1, self.shape[0])
+                self._clusters = nodal_tangent(self.assembler, x) or False
+        return self._clusters or None
 
     def _at_entries(self, T):
         """The model's entries of 3x3 tensors (n, 3, 3), shape (n, m)."""

@@ -33,7 +33,9 @@ def height_reduction(sim, t):
         return None
     first = next(iter(moving.values()))
     direction = first / np.linalg.norm(first)
-    height = np.ptp(direction @ sim.mesh.p)
+    rereferenced = getattr(sim, "rereferenced", None)  # the mesh of the initial state
+    mesh = sim.mesh if rereferenced is None else rereferenced.origin_mesh
+    height = np.ptp(direction @ mesh.p)
     travel = sum(abs(float(motion @ direction)) for motion in moving.values())
     if travel >= height:  # the tools pass through the part's height: a punch, not a press
         return None
@@ -71,6 +73,12 @@ def _cause(sim, result):
     more_steps = (f"more load steps (--set steps.count={2 * sim.scene['steps']['count']}) "
                   f"or more cut-backs (--set steps.max_cutbacks="
                   f"{sim.scene['steps']['max_cutbacks'] + 4})")
+    if "re-referencing" in (result.message or "") and "refused" in result.message:
+        return (f"the rebuild on the current configuration was refused: {error}",
+                "supports re-dilated with the current spacing (--set "
+                "discretization.rereference_supports=spacing), a larger threshold "
+                "(--set discretization.rereference=0.7: rebuild before the cells distort "
+                "as far) or --set discretization.integration=scni")
     if isinstance(error, InvertedElementError):
         points = np.atleast_1d(getattr(error, "points", []))
         where = ""
@@ -87,7 +95,7 @@ def _cause(sim, result):
                             "(--set discretization.dilation=3) or " + more_steps)
         return failed, ("the background cells that carry the quadrature fold: try "
                         "--set discretization.integration=scni (nodal integration, no "
-                        "background cells) or " + more_steps)
+                        "background cells), " + _rereferencing(sim) + more_steps)
     if isinstance(error, NonFiniteError):
         return f"a non-finite value: {error}", "check the scene's values; then " + more_steps
     text = str(error) if error is not None else result.message
@@ -95,7 +103,17 @@ def _cause(sim, result):
         return (f"the contact multipliers did not settle: {text}",
                 "try a larger penalty (--set tools.NAME.penalty_factor=100) or "
                 "--set tools.NAME.enforcement=penalty, or " + more_steps)
+    if scheme != "fem":
+        more_steps = _rereferencing(sim) + more_steps
     return f"Newton did not converge: {text}", more_steps
+
+
+def _rereferencing(sim):
+    """The re-referencing option, for an RKPM run without it."""
+    if sim.method == "fem" or sim.scene["discretization"].get("rereference") is not None:
+        return ""
+    return ("re-referencing (--set discretization.rereference=0.5: rebuild the RK "
+            "functions on the current configuration, docs/large_deformation.md) or ")
 
 
 def stop_report(sim, result):

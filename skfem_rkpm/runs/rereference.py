@@ -23,7 +23,8 @@ reference.  The rebuild (:meth:`Rereferencing.rebuild`):
   or smoothing cells, contact points, prescribed conditions (their values
   counted from the reference); support radii kept, or re-dilated with the
   current particle spacing (``discretization.rereference_supports =
-  "spacing"``: ``a_I ← a_I h_I,now / h_I,ref``);
+  "spacing"``: ``a_I ← a_I h_I,now / h_I,ref`` with ``h_I`` the longest mesh
+  edge at the particle, the direction a compressed body stretches in);
 - carries the material state to the new quadrature points by the L²
   projection of :class:`~skfem_rkpm.approximation.transfer.PointTransfer`:
   the elastic left Cauchy-Green tensor ``b_e`` (which is the new state
@@ -44,7 +45,6 @@ import numpy as np
 from skfem.quadrature import get_quadrature
 
 from ..approximation.transfer import PointTransfer, local_radius
-from ..meshes import local_spacing
 from ..mechanics.problem import InvertedElementError
 from ..mechanics.referenced import (ReferencedMaterial, elastic_left_cauchy_green,
                                     rebased_state, reference_volume_ratio,
@@ -89,7 +89,8 @@ def rereferencing_of(sim, log=None):
     if sim.partition is not None:
         raise SceneError("discretization.rereference: not with a partitioned problem "
                          "(mpiexec with the solver petsc); run it on one process")
-    return Rereferencing(sim, threshold, disc.get("rereference_supports") or "keep", log)
+    return Rereferencing(sim, threshold, disc.get("rereference_supports") or "keep", log,
+                         disc.get("rereference_transfer") or "local")
 
 
 class Rereferencing:
@@ -174,7 +175,9 @@ class Rereferencing:
         new_mesh = dataclasses.replace(mesh, doflocs=mesh.p + u_vertices.T)
         radius = np.asarray(old_basis.radius, float)
         if self.supports == "spacing":
-            radius = radius * local_spacing(new_mesh) / local_spacing(mesh)
+            # the longest edge at each particle: a support must reach its
+            # neighbours along the stretched direction of a compressed body
+            radius = radius * local_radius(new_mesh) / local_radius(mesh)
         # the old material points, where they are now, and what they carry
         dim = mesh.dim()
         X = np.asarray(old_basis.global_coordinates()).reshape(dim, -1)

@@ -125,6 +125,12 @@ SCHEMA = {
                                     doc="rkpm, rereference: the support radii at a "
                                         "rebuild: kept (default), or scaled with the "
                                         "current particle spacing"),
+        "rereference_transfer": Key("str", None, choices=("local", "basis", "points"),
+                                    doc="rkpm, rereference: how the material state "
+                                        "reaches the new points: an L² fit with local "
+                                        "supports (default), one with the basis's "
+                                        "supports, or copied Gauss point by Gauss point "
+                                        "(the same cells moved)"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", None,

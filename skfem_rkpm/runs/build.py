@@ -61,8 +61,8 @@ class Simulation:
     #: the cells and rows of each MPI rank when the problem is partitioned
     #: (:class:`~skfem_rkpm.solvers.partitioned.Partition`), else None
     partition: object = None
-    #: the re-referencing of the run (:class:`~skfem_rkpm.runs.rereference.Rereferencing`)
-    #: once it has rebuilt the discretization on a later configuration, else None
+    #: the re-referencing of the run (:class:`~skfem_rkpm.runs.rereference.Rereferencing`,
+    #: which rebuilds the discretization on later configurations), else None
     rereferenced: object = None
 
     @property

@@ -14,7 +14,10 @@ after a converged step, the deformation since the last reference has
 ``det F < θ`` at a quadrature point or the Jacobian of a
 background cell below ``θ`` times its value at the reference (the cell
 distorted), and when a step fails after progress since the last
-reference.  The rebuild (:meth:`Rereferencing.rebuild`):
+reference.  A rebuild that is refused (a cell of the current configuration
+folded within one step, a moment matrix that cannot be inverted there)
+ends the rebuilds: the run goes on on the last reference, whose quadrature
+is still valid.  The rebuild (:meth:`Rereferencing.rebuild`):
 
 - moves the mesh vertices (the particles) to their current positions,
   ``x = X + u``; the background cells are the current cells (refused if
@@ -125,7 +128,10 @@ class Rereferencing:
         self.t_ref = 0.0
         #: (load factor, reason) of every rebuild
         self.events = []
+        #: (load factor, error) of a rebuild refused: no more are tried
+        self.refused = None
         self._intorder = sim.scene["discretization"]["quadrature"]
+        sim.rereferenced = self
 
     # -- when ---------------------------------------------------------------
     def degradation(self, d, evaluation):
@@ -144,7 +150,10 @@ class Rereferencing:
                 f"at Gauss point {cell[1]})")
 
     def after_step(self, record, d, evaluation):
-        """Raise :class:`Rebuild` when the map since the reference has degraded."""
+        """Raise :class:`Rebuild` when the map since the reference has degraded
+        (not after a refused rebuild: the run goes on on the last reference)."""
+        if self.refused is not None:
+            return
         value, where = self.degradation(d, evaluation)
         if value < self.threshold:
             raise Rebuild(f"{where} < {self.threshold:g}", d)
@@ -152,7 +161,7 @@ class Rereferencing:
     def can_retry(self, t):
         """A failed step at converged load factor ``t``: rebuild and retry
         when the run has gone on since the last reference."""
-        return t > self.t_ref + 1e-12
+        return self.refused is None and t > self.t_ref + 1e-12
 
     # -- how ----------------------------------------------------------------
     def rebuild(self, d, t, reason, stepper=None):
@@ -210,7 +219,7 @@ class Rereferencing:
         self.offset = self.offset + u_vertices
         for name in ("mesh", "basis", "problem", "load", "tools", "follower_loads"):
             setattr(sim, name, getattr(new, name))
-        sim.prescribed, sim.points, sim.rereferenced = prescribed, points, self
+        sim.prescribed, sim.points = prescribed, points
         self.t_ref = t
         self.events.append((t, reason))
         if stepper is not None:
@@ -227,10 +236,15 @@ class Rereferencing:
 
     def describe(self):
         """One line on the rebuilds, for the run's status."""
-        if not self.events:
-            return "not re-referenced"
-        where = ", ".join(f"{t:.4g}" for t, _ in self.events)
-        return f"re-referenced {len(self.events)} times (at t = {where})"
+        text = "not re-referenced"
+        if self.events:
+            where = ", ".join(f"{t:.4g}" for t, _ in self.events)
+            text = f"re-referenced {len(self.events)} times (at t = {where})"
+        if self.refused is not None:
+            t, err = self.refused
+            text += (f"; a rebuild at t = {t:.4g} was refused ({err}), the run went on "
+                     f"on the last reference")
+        return text
 
 
 def _keep_contact(old, now):
@@ -292,9 +306,11 @@ def solve_segments(rereferencing, solve, stepper):
         except Rebuild as signal:
             try:
                 d0 = rereferencing.rebuild(signal.d, stepper.t, signal.reason, stepper)
-            except REFUSALS as err:  # the step converged: stop there, saying why
-                return Result(signal.d, [], [], False,
-                              f"re-referencing at t = {stepper.t:.6g} refused: {err}", err)
+            except REFUSALS as err:
+                # the step converged on the last reference, whose quadrature is
+                # valid: go on there, as the Lagrangian functions do
+                rereferencing.refused = (stepper.t, err)
+                d0 = signal.d
             continue
         if result.completed or not rereferencing.can_retry(stepper.t):
             return result

@@ -73,12 +73,6 @@ def _cause(sim, result):
     more_steps = (f"more load steps (--set steps.count={2 * sim.scene['steps']['count']}) "
                   f"or more cut-backs (--set steps.max_cutbacks="
                   f"{sim.scene['steps']['max_cutbacks'] + 4})")
-    if "re-referencing" in (result.message or "") and "refused" in result.message:
-        return (f"the rebuild on the current configuration was refused: {error}",
-                "supports re-dilated with the current spacing (--set "
-                "discretization.rereference_supports=spacing), a larger threshold "
-                "(--set discretization.rereference=0.7: rebuild before the cells distort "
-                "as far) or --set discretization.integration=scni")
     if isinstance(error, InvertedElementError):
         points = np.atleast_1d(getattr(error, "points", []))
         where = ""
@@ -109,11 +103,23 @@ def _cause(sim, result):
 
 
 def _rereferencing(sim):
-    """The re-referencing option, for an RKPM run without it."""
-    if sim.method == "fem" or sim.scene["discretization"].get("rereference") is not None:
+    """The re-referencing option for an RKPM run without it; for one whose
+    rebuild was refused, what would let it rebuild."""
+    if sim.method == "fem":
         return ""
-    return ("re-referencing (--set discretization.rereference=0.5: rebuild the RK "
-            "functions on the current configuration, docs/large_deformation.md) or ")
+    disc = sim.scene["discretization"]
+    if disc.get("rereference") is None:
+        return ("re-referencing (--set discretization.rereference=0.5: rebuild the RK "
+                "functions on the current configuration, docs/large_deformation.md) or ")
+    chain = getattr(sim, "rereferenced", None)
+    if chain is None or chain.refused is None:
+        return ""
+    spacing = ("supports re-dilated with the current spacing (--set "
+               "discretization.rereference_supports=spacing), "
+               if (disc.get("rereference_supports") or "keep") == "keep" else "")
+    return (f"a rebuild that is not refused: {spacing}a larger threshold (--set "
+            f"discretization.rereference={min(0.9, disc['rereference'] + 0.2):.2g}: "
+            f"rebuild before the cells distort as far), or ")
 
 
 def stop_report(sim, result):

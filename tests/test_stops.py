@@ -71,6 +71,31 @@ def test_rkpm_on_background_cells_is_pointed_to_nodal_integration(tmp_path):
     assert "cause: det F <= 0" in result.report
     assert ("the background cells that carry the quadrature fold: try --set "
             "discretization.integration=scni") in result.report
+    assert "re-referencing (--set discretization.rereference=0.5" in result.report
+
+
+def test_a_rereferenced_run_counts_its_rebuilds_and_the_initial_height(tmp_path):
+    """The folding ring with re-referencing: the rebuilds are named in the
+    status, and the height reduction is the platen travel over the initial
+    height (not that of the last reference)."""
+    sim = runner.build(ring(FOLDING + ["discretization.rereference=0.9",
+                                       "discretization.rereference_supports=spacing"]),
+                       "rkpm")
+    result = runner.run(sim, tmp_path, progress=False)
+    status = (tmp_path / "status.txt").read_text()
+    rebuilds = re.search(r"re-referenced (\d+) times \(at t = ", status)
+    assert rebuilds and int(rebuilds[1]) == len(sim.rereferenced.events) >= 1, status
+    t = result.history[-1].t
+    if not result.completed:
+        reached = re.search(r"reached t = [\d.]+ of 1 \(([\d.]+) % height reduction\)",
+                            status)
+        assert float(reached[1]) == pytest.approx(100 * t * 17.0 / 20.0, abs=0.05)
+        assert "re-referencing (--set" not in status  # it is on already
+    rows = list(csv.DictReader(open(tmp_path / "history.csv", newline="")))
+    assert len(rows) == len(result.history)
+    # the gauges stay in the initial frame: the platen-side top point has
+    # come down with the platen (stick: it touches from the first step)
+    assert float(rows[-1]["outer_top y"]) == pytest.approx(20.0 - 17.0 * t, abs=0.05)
 
 
 def test_newton_that_does_not_converge_is_named_with_more_steps(tmp_path):
@@ -83,3 +108,19 @@ def test_newton_that_does_not_converge_is_named_with_more_steps(tmp_path):
     assert "to go further: more load steps (--set steps.count=4) or more cut-backs " \
            "(--set steps.max_cutbacks=4)" in result.report
     assert "reached t = 0 of 1 (0.0 % height reduction) in 0 converged steps" in result.report
+
+
+def test_a_refused_rebuild_is_named_and_the_run_goes_on(tmp_path):
+    """Supports kept on the coarse ring (a = 1.2 h): the sheared particles of
+    the current configuration leave Gauss points covered by two particles,
+    the rebuild is refused, and the run goes on on its last reference (here
+    the initial one: Lagrangian RKPM); its status says so, and a report
+    points to re-dilated supports."""
+    sim = runner.build(ring(FOLDING + ["discretization.rereference=0.9"]), "rkpm")
+    result = runner.run(sim, tmp_path, progress=False)
+    status = (tmp_path / "status.txt").read_text()
+    assert "not re-referenced; a rebuild at t = 0.3 was refused (moment matrix" in status
+    assert "the run went on on the last reference" in status
+    assert result.history[-1].t > 0.3
+    if not result.completed:
+        assert "--set discretization.rereference_supports=spacing" in result.report

@@ -227,17 +227,9 @@ class SolidProblem:
         outside them, so ``A:F_M`` needs no others.  The rank-one part is added
         to the local matrices before they are summed.
         """
-        dV = self.assembler.layout.dx
-        Jq = J.reshape(self.shape)
-        Jbar = np.repeat(np.sum(Jq * dV, axis=1) / np.sum(dV, axis=1), self.shape[1])
         n = 2 if self.model == "plane_strain" else 3
-        FM = F.copy()
-        if n == 2:
-            FM[:, 2, :] = 0.0
-            FM[:, :, 2] = 0.0
-        beta = Jbar / J
-        s, gamma = beta ** (1.0 / n), beta ** (1.0 / n - 1.0)
-        Fbar = F + (s - 1.0)[:, None, None] * FM
+        Fbar, Jbar, FM, s, beta = self._fbar(F, J)
+        gamma = beta ** (1.0 / n - 1.0)
         Pbar, taubar, new_state, point = self._stress(Fbar, state)
         P = gamma[:, None, None] * Pbar
         tau = (J / Jbar)[:, None, None] * taubar  # J σ with σ the Cauchy stress of F̄
@@ -258,11 +250,34 @@ class SolidProblem:
             dP_ext, _ = from_entries(dP_dJbar, None, self.model, self.shape)
             dJ_ext, _ = from_entries(J[:, None] * FinvT, None, self.model, self.shape)
             u = self.assembler.cell_vectors(dP_ext)
-            w = self.assembler.cell_vectors(dJ_ext, test=False) / np.sum(dV, axis=1)
+            w = (self.assembler.cell_vectors(dJ_ext, test=False)
+                 / np.sum(self.assembler.layout.dx, axis=1))
             return self._tangent_matrix(A_ext, (u, w))
 
         return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
                           form_tangent if tangent else None, point)
+
+    def _fbar(self, F, J):
+        """``F̄ = F + (β^{1/n} - 1) F_M``, ``J̄_e`` per point, ``F_M``,
+        ``s = β^{1/n}`` and ``β = J̄_e / J`` (see :meth:`_evaluate_fbar`)."""
+        dV = self.assembler.layout.dx
+        Jq = J.reshape(self.shape)
+        Jbar = np.repeat(np.sum(Jq * dV, axis=1) / np.sum(dV, axis=1), self.shape[1])
+        n = 2 if self.model == "plane_strain" else 3
+        FM = F.copy()
+        if n == 2:
+            FM[:, 2, :] = 0.0
+            FM[:, :, 2] = 0.0
+        beta = Jbar / J
+        s = beta ** (1.0 / n)
+        return F + (s - 1.0)[:, None, None] * FM, Jbar, FM, s, beta
+
+    def material_gradient(self, F):
+        """The deformation gradients the material sees at ``F``: ``F̄`` with
+        F-bar, ``F`` otherwise."""
+        if self.locking != "fbar":
+            return F
+        return self._fbar(F, np.linalg.det(F))[0]
 
     def _tangent_matrix(self, A_ext, rank_one=None):
         """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w`` (summed

@@ -61,6 +61,9 @@ class Simulation:
     #: the cells and rows of each MPI rank when the problem is partitioned
     #: (:class:`~skfem_rkpm.solvers.partitioned.Partition`), else None
     partition: object = None
+    #: the re-referencing of the run (:class:`~skfem_rkpm.runs.rereference.Rereferencing`,
+    #: which rebuilds the discretization on later configurations), else None
+    rereferenced: object = None
 
     @property
     def contributions(self):
@@ -106,14 +109,17 @@ def resolve_locking(locking, method, element, scene):
     return "none" if slides else "fbar"
 
 
-def build(scene, method=None, trust_geo=False):
+def build(scene, method=None, trust_geo=False, mesh=None, radius=None):
     """Turn a validated scene (see :func:`skfem_rkpm.runs.scene.load_scene`) into a
     :class:`Simulation`; ``method`` overrides ``model.method``; ``trust_geo``
     lets a gmsh ``.geo`` geometry file run programs or read other files
-    (refused otherwise, see :func:`skfem_rkpm.meshes.geo_check.check_geo`)."""
+    (refused otherwise, see :func:`skfem_rkpm.meshes.geo_check.check_geo`).
+    ``mesh`` and ``radius`` (RKPM support radii) replace the scene's (a
+    rebuild on a later configuration, :mod:`skfem_rkpm.runs.rereference`)."""
     model = scene["model"]["type"]
     method = method or scene["model"]["method"]
-    mesh = mesh_from(scene["geometry"], scene.get("_base"), trust_geo)
+    if mesh is None:
+        mesh = mesh_from(scene["geometry"], scene.get("_base"), trust_geo)
     check_mesh(scene, mesh)
     boundaries = set((mesh.boundaries or {}).keys())
     disc = scene["discretization"]
@@ -139,7 +145,8 @@ def build(scene, method=None, trust_geo=False):
         basis = RKBasis(mesh, vector=True, order=disc["order"], kernel=disc["kernel"],
                         support_shape=disc["support_shape"], intorder=disc["quadrature"],
                         integration=disc["integration"], axisymmetric=model == "axisymmetric",
-                        radius=(spacing_radius(mesh, disc)
+                        radius=(radius if radius is not None else
+                                spacing_radius(mesh, disc)
                                 if disc["support"] is not None else None),
                         support=disc["dilation"], stabilization=stabilization or 0.0,
                         interpolating=disc["interpolating"], smoothing=disc["smoothing"],

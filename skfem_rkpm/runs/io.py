@@ -293,6 +293,9 @@ class FieldWriter:
             self._claim(self.folder, folder=True)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.problem = problem
+        #: vertex displacements added to the problem's (a run re-referenced
+        #: on a later configuration writes those from the initial one)
+        self.offset = None
         # nodal integration: the material points are the particles (vertices),
         # whose state is written as it is, at the vertices
         self._nodal = getattr(problem.basis, "nodal_quadrature", None) is not None
@@ -361,7 +364,7 @@ class FieldWriter:
         problem = self.problem
         u = np.zeros((problem.basis.mesh.nvertices, 3))
         disp = nodal_displacements(problem.basis, d)
-        u[:, : disp.shape[1]] = disp
+        u[:, : disp.shape[1]] = disp if self.offset is None else disp + self.offset
         if fields is None:
             if problem.partitioned:
                 raise ValueError("the fields of a partitioned problem are gathered from "

@@ -36,6 +36,7 @@ from .checkpoint import load_checkpoint, run_identity, save_checkpoint
 from .folder import RunFolder, open_append
 from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
                  nodal_displacements, record_from_json, record_to_json)
+from .rereference import rereferencing_of, solve_segments
 from .scene_dynamics import is_dynamic
 from .stops import stop_report
 
@@ -235,9 +236,15 @@ class _StepWriter:
         self.csv.append(record, gauges)
         self.records.write(record_to_json(record, gauges))
         self.records.flush()
+        rereferenced = self.sim.rereferenced
         if self.fields is not None and _field_step(self.sim, record):
+            if rereferenced is not None:  # fields on the current reference, in the
+                self.fields.problem = self.sim.problem  # initial configuration's frame
+                self.fields.offset = rereferenced.offset
             self.fields.write(record.t, d, evaluation, step=record.step,
                               fields=gathered and gathered[1])
+        if rereferenced is not None:
+            return  # the checkpoint stays at the last step on the initial reference
         save_checkpoint(self.out, self.sim, d, stepper, self.identity,
                         state=gathered and gathered[0], steps=steps,
                         history_bytes=(self.out / "history.csv").stat().st_size,
@@ -260,12 +267,16 @@ def _gathered(sim, record, evaluation):
 
 def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, gather=False):
     steps = sim.scene["steps"]
-    probes = _point_probes(sim.basis, sim.points)
+    probes = {id(sim.basis): _point_probes(sim.basis, sim.points)}
     history, rows = start.history, start.rows
     bar = Progress(enabled=progress, count=steps["count"])
+    rereferencing = rereferencing_of(sim, log)
 
     def on_step(record, d, evaluation):
-        gauges = _gauges(sim, probes, d)
+        if id(sim.basis) not in probes:  # rebuilt on a later configuration
+            probes.clear()
+            probes[id(sim.basis)] = _point_probes(sim.basis, sim.points)
+        gauges = _gauges(sim, probes[id(sim.basis)], d)
         for tool in sim.tools:
             gauges.update(tool.gauges(record.t))
         history.append(record)
@@ -276,14 +287,21 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, ga
                 writer.write(record, gauges, d, evaluation, start.stepper, len(history),
                              gathered)
         bar(record)
+        if rereferencing is not None:
+            rereferencing.after_step(record, d, evaluation)
+
+    def solve(d0):
+        return newton_steps(sim.problem, sim.prescribed, load=sim.load,
+                            steps=steps["count"], tol=steps["tolerance"],
+                            max_iterations=steps["max_iterations"],
+                            max_cutbacks=steps["max_cutbacks"], log=log,
+                            d0=start.d0 if d0 is None else d0,
+                            contributions=sim.contributions, on_step=on_step,
+                            linear_solver=solver, stepper=start.stepper)
 
     try:
-        result = newton_steps(sim.problem, sim.prescribed, load=sim.load,
-                              steps=steps["count"], tol=steps["tolerance"],
-                              max_iterations=steps["max_iterations"],
-                              max_cutbacks=steps["max_cutbacks"], log=log, d0=start.d0,
-                              contributions=sim.contributions, on_step=on_step,
-                              linear_solver=solver, stepper=start.stepper)
+        result = (solve(None) if rereferencing is None
+                  else solve_segments(rereferencing, solve, start.stepper))
     except KeyboardInterrupt:
         if folder is not None:
             last = (f"after step {history[-1].step}, t = {history[-1].t:.6g}" if history
@@ -303,6 +321,8 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, ga
         result.message = final_state_message(sim, result.d)
     else:
         result.report = stop_report(sim, result)
+    if rereferencing is not None:
+        result.message += f" ({rereferencing.describe()})"
     if folder is not None:
         folder.status("\n".join(filter(None, [result.message, result.report])))
     return result

@@ -23,7 +23,7 @@ from .scene_dynamics import DENSITY, OPTIONAL_SECTIONS, check_dynamics
 from .scene_geometry import check_components, check_geometry, mesh_from, model_dimension
 from .scene_tools import TOOL_SCHEMA, check_tool
 from .scene_values import (COMPONENTS, HISTORY, Key, SceneError, _angle_span, _annulus_radii,
-                           _cell_counts, _flow_curve, _grading, _history,
+                           _cell_counts, _flow_curve, _fraction, _grading, _history,
                            _increasing_pair, _named_points, _non_negative, _pair,
                            _poisson, _positive, _quadrature, _segments,
                            _triple, _vector_history)
@@ -117,6 +117,22 @@ SCHEMA = {
                                         "(default elastic; shear: the deviatoric part only; "
                                         "tangent: the material tangent at the particles, "
                                         "see docs/nodal_integration.md)"),
+        "rereference": Key("float", check=_fraction,
+                           doc="rkpm: rebuild the RK functions on the current "
+                               "configuration when det F since the last reference, or a "
+                               "cell's Jacobian ratio at a Gauss point, falls below this value, and "
+                               "after a failed step (0 < value < 1; default: never; see "
+                               "docs/large_deformation.md)"),
+        "rereference_supports": Key("str", None, choices=("keep", "spacing"),
+                                    doc="rkpm, rereference: the support radii at a "
+                                        "rebuild: kept (default), or scaled with the "
+                                        "current particle spacing"),
+        "rereference_transfer": Key("str", None, choices=("local", "basis", "points"),
+                                    doc="rkpm, rereference: how the material state "
+                                        "reaches the new points: an L² fit with local "
+                                        "supports (default), one with the basis's "
+                                        "supports, or copied Gauss point by Gauss point "
+                                        "(the same cells moved)"),
         "quadrature": Key("int", 4, check=_quadrature,
                           doc="degree of the Gauss rule per cell (7: 4x4 points on quads)"),
         "element": Key("str", None,

@@ -41,6 +41,10 @@ def _non_negative(v):
     return None if v >= 0 else "must not be negative"
 
 
+def _fraction(v):
+    return None if 0.0 < v < 1.0 else "must lie in (0, 1)"
+
+
 def _poisson(v):
     return None if -1.0 < v < 0.5 else "must lie in (-1, 0.5)"
 

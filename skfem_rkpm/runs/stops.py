@@ -36,7 +36,9 @@ def height_reduction(sim, t):
         return None
     first = next(iter(moving.values()))
     direction = first / np.linalg.norm(first)
-    height = np.ptp(direction @ sim.mesh.p)
+    rereferenced = getattr(sim, "rereferenced", None)  # the mesh of the initial state
+    mesh = sim.mesh if rereferenced is None else rereferenced.origin_mesh
+    height = np.ptp(direction @ mesh.p)
     travel = sum(abs(float(motion @ direction)) for motion in moving.values())
     if travel >= height:  # the tools pass through the part's height: a punch, not a press
         return None
@@ -90,7 +92,7 @@ def _cause(sim, result):
                             "(--set discretization.dilation=3) or " + more_steps)
         return failed, ("the background cells that carry the quadrature fold: try "
                         "--set discretization.integration=scni (nodal integration, no "
-                        "background cells) or " + more_steps)
+                        "background cells), " + _rereferencing(sim) + more_steps)
     if isinstance(error, NonFiniteError):
         return f"a non-finite value: {error}", "check the scene's values; then " + more_steps
     text = str(error) if error is not None else result.message
@@ -98,7 +100,29 @@ def _cause(sim, result):
         return (f"the contact multipliers did not settle: {text}",
                 "try a larger penalty (--set tools.NAME.penalty_factor=100) or "
                 "--set tools.NAME.enforcement=penalty, or " + more_steps)
+    if scheme != "fem":
+        more_steps = _rereferencing(sim) + more_steps
     return f"Newton did not converge: {text}", more_steps
+
+
+def _rereferencing(sim):
+    """The re-referencing option for an RKPM run without it; for one whose
+    rebuild was refused, what would let it rebuild."""
+    if sim.method == "fem":
+        return ""
+    disc = sim.scene["discretization"]
+    if disc.get("rereference") is None:
+        return ("re-referencing (--set discretization.rereference=0.5: rebuild the RK "
+                "functions on the current configuration, docs/large_deformation.md) or ")
+    chain = getattr(sim, "rereferenced", None)
+    if chain is None or chain.refused is None:
+        return ""
+    spacing = ("supports re-dilated with the current spacing (--set "
+               "discretization.rereference_supports=spacing), "
+               if (disc.get("rereference_supports") or "keep") == "keep" else "")
+    return (f"a rebuild that is not refused: {spacing}a larger threshold (--set "
+            f"discretization.rereference={min(0.9, disc['rereference'] + 0.2):.2g}: "
+            f"rebuild before the cells distort as far), or ")
 
 
 def stop_report(sim, result):

@@ -45,6 +45,7 @@ from skfem.assembly.form.form import FormExtraParams
 from skfem.element import DiscreteField, ElementVector
 
 from .assembly import Assembler, Layout, layout
+from .material_interfaces import check_interfaces
 
 __all__ = ["asm", "check_fields", "check_quadrature", "pointwise_operator", "SlowAssemblyWarning",
            "PairwiseLoopWarning", "pairwise_loop_message", "CorrectedTrialWarning"]
@@ -149,6 +150,8 @@ def assemble(form, ubasis, vbasis=None, **kwargs):
     """One form on one trial (and test) basis; see :func:`asm`."""
     form = _as_form(form)
     check_fields(ubasis, kwargs)
+    if _is_rk(ubasis):
+        check_interfaces(isinstance(form, BilinearForm), ubasis, kwargs)
     if isinstance(form, BilinearForm):
         vbasis = ubasis if vbasis is None else vbasis
         check_quadrature(ubasis, vbasis)

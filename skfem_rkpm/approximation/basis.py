@@ -26,7 +26,7 @@ from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from .reduction import WHOLE
 from .element_particles import (DEFAULT_INTORDER, DEFAULT_SUPPORT, element_degree,
-                                element_particles, scalar_element)
+                                element_particles, line_defaults, scalar_element)
 from .rk_base import RKBase
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
@@ -214,10 +214,14 @@ class RKBasis(CellViews, RKBase):
                  elements=None, interpolating=False, smoothing="median_dual",
                  reduction=None):
         element = scalar_element(vector)
+        self._element = vector if element is not None else None  # RKBasis.elem
         vector = field_is_vector(vector)
         particles = (element_particles(mesh, element)
                      if nodes is None and integration not in NODAL_SCHEMES else None)
         degree = 1 if element is None else element_degree(element)
+        if particles is not None or nodes is None:
+            order, support, intorder, integration = line_defaults(
+                mesh, degree, order, support, intorder, integration)
         order = degree if order is None else order
         support = DEFAULT_SUPPORT[degree if particles is not None else 1] \
             if support is None else support

@@ -75,7 +75,7 @@ def jumping_coefficients(basis, fields):
         return out
     pairs = None
     for name, field in fields.items():
-        value = field.value if isinstance(field, DiscreteField) else field
+        value = np.asarray(field) if isinstance(field, DiscreteField) else field
         if not isinstance(value, np.ndarray) or value.ndim < 2 or \
                 value.shape[-2:] != (basis.nelems, basis.X.shape[-1]) or \
                 not np.isrealobj(value):

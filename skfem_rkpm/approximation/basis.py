@@ -294,7 +294,7 @@ class RKBasis(CellViews, RKBase):
         _check_distinct(nodes, self.radius)
         self._primitive = basis_primitive_radius(interpolating, nodes, self.radius)
         self.interpolating = self._primitive is not None
-        if self.interpolating and order == 2 and particles is not None:
+        if self.interpolating and order == 2 and particles is not None and mesh.dim() > 1:
             warnings.warn(
                 "interpolating RK functions of order 2 converge more slowly than the "
                 "plain ones: on P2 meshes of the unit square (Poisson) their L2 error "

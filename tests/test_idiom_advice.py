@@ -214,3 +214,14 @@ def test_recovery_indicator_matches_the_gradient_error_of_a_smooth_solution():
         warnings.simplefilter("ignore")
         with pytest.raises(TypeError, match="RK cell basis"):
             recovery_indicator(Basis(MESH, ElementQuad1()), np.zeros(MESH.nvertices))
+
+
+def test_dofs_of_an_interpolating_basis_names_get_dofs():
+    rk = RKBasis(MESH, ElementQuad1(), interpolating=True)
+    with pytest.raises(BasisIdiomError, match=r"x\[basis\.get_dofs\(facets\)\] = g"):
+        rk.dofs
+    assert not hasattr(rk, "dofs")
+    x = rk.zeros()
+    x[rk.get_dofs("left")] = 3.0
+    np.testing.assert_allclose(rk.probes(np.array([[0.0], [0.25]])) @ x, 3.0, atol=1e-12)
+    np.testing.assert_array_equal(rk.nodal_dofs[0], np.arange(rk.N))

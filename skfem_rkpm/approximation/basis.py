@@ -143,7 +143,9 @@ class RKBasis(CellViews, RKBase):
         :data:`.element_particles.DEFAULT_SUPPORT`).
     order : int
         Basis order ``N`` of Eq. (3.18): 0, 1 or 2.  Default: the degree of
-        the element given as ``vector``, else 1.
+        the element given as ``vector``, else 1.  On a 1D mesh, unless
+        ``order`` or ``integration`` is given: order 2, support 2.5 and
+        Gauss of degree 20 (:data:`.element_particles.LINE_DEFAULTS`).
     kernel : str or callable
         Window function, ``"cubic"`` (Eq. 3.12, default) or ``"quartic"``.
     support_shape : {"radial", "box"}

@@ -8,7 +8,7 @@ RK coefficients (a load vector of FEM functions beside an RK matrix).  So
 ``RKBasis.elem`` is the element given to ``RKBasis`` (or the lowest-order
 Lagrange element of the mesh, as a vector element for a vector basis), with
 every attribute of the element, but building an FEM basis from it raises a
-:class:`~.basis_views.BasisIdiomError` that names the RK call:
+:class:`~.idiom_errors.BasisIdiomError` that names the RK call:
 ``rk.with_elements(elements)`` for the RK functions on some cells, and
 ``rk.with_element(rk.elem)`` for an FEM basis of the element on the RK
 basis's cells and quadrature (which unwraps the guard).
@@ -17,6 +17,8 @@ basis's cells and quadrature (which unwraps the guard).
 import copy
 
 from skfem.element import ElementVector
+
+from .idiom_errors import BasisIdiomError
 
 __all__ = ["guarded_element", "plain_element"]
 
@@ -31,8 +33,6 @@ MESSAGE = (
 
 
 def _refuse(self, *args, **kwargs):
-    from .basis_views import BasisIdiomError
-
     raise BasisIdiomError(MESSAGE.format(name=type(self).__name__))
 
 

@@ -36,6 +36,7 @@ from skfem.mesh import MeshHex1, MeshLine1, MeshQuad1, MeshTet1, MeshTri1
 from skfem.refdom import RefHex, RefLine, RefQuad, RefTet, RefTri
 
 from .basis_element import guarded_element, plain_element
+from .idiom_errors import BasisIdiomError, CoefficientsNotNodalError
 
 
 __all__ = ["BasisIdiomError", "CoefficientsNotNodalError", "CellViews", "FacetViews", "lagrange_element",
@@ -44,20 +45,6 @@ __all__ = ["BasisIdiomError", "CoefficientsNotNodalError", "CellViews", "FacetVi
 _LINEAR = {RefLine: (ElementLineP1, MeshLine1), RefTri: (ElementTriP1, MeshTri1),
            RefQuad: (ElementQuad1, MeshQuad1), RefTet: (ElementTetP1, MeshTet1),
            RefHex: (ElementHex1, MeshHex1)}
-
-
-class BasisIdiomError(NotImplementedError):
-    """A scikit-fem basis idiom an RK basis cannot honour as asked.
-
-    The message names what to use instead.
-    """
-
-
-class CoefficientsNotNodalError(BasisIdiomError, AttributeError):
-    """An idiom that would read RK coefficients as nodal values (``x[basis.nodal_dofs[0]]``).
-
-    Also an ``AttributeError``: ``hasattr(basis, "nodal_dofs")`` is False.
-    """
 
 
 def _linear(mesh):
@@ -88,7 +75,14 @@ class _DofIdioms:
         are nodal values) ``nodal_dofs`` (ncomp, nparticles) and empty facet,
         edge and interior dofs (on a quadratic element's particles, those of
         its FEM basis); a :class:`CoefficientsNotNodalError` otherwise."""
-        if getattr(getattr(self, "parent", self), "interpolating", False) and name != "dofs":
+        interpolating = getattr(getattr(self, "parent", self), "interpolating", False)
+        if interpolating and name == "dofs":
+            raise CoefficientsNotNodalError(
+                "an RK basis has no scikit-fem Dofs object (basis.dofs); its dof numbers "
+                "come from basis.get_dofs(facets) (x[basis.get_dofs(facets)] = g sets "
+                "nodal values on this interpolating basis), basis.nodal_dofs and "
+                "basis.split_indices()")
+        if interpolating:
             particles = getattr(getattr(self, "parent", self), "_element_particles", None)
             if particles is not None:
                 return particles.dof_array(name, self.ncomp)

@@ -104,7 +104,7 @@ def element_particles(mesh, element):
 #: linear) and an order-1 RK basis is not: scikit-fem's ex15 (-u'' = 1 on 9
 #: cells, P1) read u(4/9) 3.8e-4 off the exact 10/81 with order 1 (support
 #: 2-3, intorder 4-8, VCI or Gauss), and 3.9e-6 with order 2, support 2.5
-#: and Gauss of degree 12; 6.1e-7 with degree 20.  Order 2 reproduces the
+#: and Gauss of degree 12; 6.6e-8 with degree 20 (6.1e-7 at the worst vertex).  Order 2 reproduces the
 #: quadratic solution, and the Gauss rule is trial and test basis at once
 #: (``form.assemble(basis)``), which symmetric VCI is not at order 2.  11
 #: points per cell cost nothing in 1D (docs/rk_basis.md, "1D").

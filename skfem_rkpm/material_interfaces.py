@@ -71,7 +71,8 @@ def jumping_coefficients(basis, fields):
     points of ``basis``, shape (..., nelems, nqp)) that jump across an
     interior facet: ``{name: (number of facets, smallest, largest value)}``."""
     out = {}
-    if getattr(basis, "nodal_quadrature", None) is not None or not hasattr(basis, "mesh"):
+    if getattr(basis, "nodal_quadrature", None) is not None or not hasattr(basis, "mesh") \
+            or hasattr(basis, "parent"):  # nodal schemes and facet bases: no cells
         return out
     pairs = None
     for name, field in fields.items():

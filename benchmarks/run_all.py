@@ -60,6 +60,7 @@ SUITE = {
     "petsc_mpi": ([], ["--sizes", "50"], (10, 2)),
     "form_assembly": ([], ["--no-skfem", "--repeat", "3"], (1.5, 0.5)),
     "skfem_examples": ([], ["--repeat", "1"], (1, 0.5)),
+    "published_examples": ([], ["--repeat", "1"], (1, 0.3)),
     "surface_projection": ([], ["--points", "2e3", "--repeat", "3"], (1, 0.2)),
     "vci_symmetry": ([], ["--levels", "4", "8", "--supports", "2", "--repeat", "1"],
                      (6, 0.5)),

@@ -12,6 +12,8 @@ from .solvers.idioms import (PartialSolutionWarning, coefficients, condense, eig
 from .approximation.kernels import cubic_spline, quartic_spline
 from .meshes import local_spacing
 from .approximation.shape import ShapeTable, SingularMomentError, rk_shape_functions
+from .indicators import ZeroJumpWarning, recovery_indicator
+from .material_interfaces import MaterialInterfaceWarning
 
 __version__ = "0.1.0"
 
@@ -20,6 +22,7 @@ __all__ = [
     "BasisIdiomError",
     "CoefficientsNotNodalError",
     "CorrectedTrialWarning",
+    "MaterialInterfaceWarning",
     "PartialSolutionWarning",
     "RKBasis",
     "RKFacetBasis",
@@ -27,6 +30,7 @@ __all__ = [
     "ShapeTable",
     "SingularMomentError",
     "SlowAssemblyWarning",
+    "ZeroJumpWarning",
     "asm",
     "coefficients",
     "condense",
@@ -38,6 +42,7 @@ __all__ = [
     "linear_solve",
     "local_spacing",
     "penalize",
+    "recovery_indicator",
     "quartic_spline",
     "rk_shape_functions",
     "solve",

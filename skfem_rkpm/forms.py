@@ -45,9 +45,11 @@ from skfem.assembly.form.form import FormExtraParams
 from skfem.element import DiscreteField, ElementVector
 
 from .assembly import Assembler, Layout, layout
+from .material_interfaces import check_interfaces
 
 __all__ = ["asm", "check_fields", "check_quadrature", "pointwise_operator", "SlowAssemblyWarning",
-           "PairwiseLoopWarning", "pairwise_loop_message", "CorrectedTrialWarning"]
+           "PairwiseLoopWarning", "pairwise_loop_message", "scikit_fem_caller",
+           "CorrectedTrialWarning"]
 
 #: relative tolerance of the check that a form is (bi)linear in its arguments
 LINEARITY_RTOL = 1e-9
@@ -63,14 +65,60 @@ class PairwiseLoopWarning(SlowAssemblyWarning):
     the local functions of an RK basis (:func:`pairwise_loop_message`)."""
 
 
-def pairwise_loop_message(basis):
+#: the replacement of each scikit-fem call that runs its loop over local
+#: functions, as :func:`pairwise_loop_message` names it
+FAST_CALLS = {
+    "skfem.asm": "from skfem_rkpm import asm (skfem.asm's signature: asm(form, basis), "
+                 "asm(form, ubasis, vbasis), lists, to=, keyword fields)",
+    "form.assemble": "skfem_rkpm.asm(form, basis, **kwargs) in place of "
+                     "form.assemble(basis, **kwargs) (and skfem_rkpm.asm(form, ubasis, "
+                     "vbasis) for form.assemble(ubasis, vbasis)): a method call does not "
+                     "reach the asm imported from skfem_rkpm",
+}
+
+
+def scikit_fem_caller(depth=2):
+    """Which scikit-fem call the current loop runs under, ``"skfem.asm"``
+    or ``"form.assemble"`` (``Form.assemble``, ``elemental``, ``coo_data``),
+    and the ``stacklevel`` of its caller counted from the caller of this
+    function; ``(None, 2)`` if no scikit-fem frame is found."""
+    import sys
+
+    frame, level, call, user = sys._getframe(depth), 1, None, None
+    seen = False
+    while frame is not None:
+        path = frame.f_code.co_filename.replace("\\", "/")
+        inside = "/skfem/" in path and "/skfem_rkpm/" not in path
+        if inside:
+            seen = True
+            name = frame.f_code.co_name
+            if name == "asm" and path.endswith("assembly/__init__.py"):
+                call = "skfem.asm"
+            elif name in ("assemble", "elemental", "coo_data") and "/form/" in path \
+                    and call != "skfem.asm":
+                call = "form.assemble"
+        elif seen:
+            user = level
+            break
+        frame, level = frame.f_back, level + 1
+    return call, (user + 1 if user is not None else 2)
+
+
+def pairwise_loop_message(basis, call=None):
     """What scikit-fem's loop over local functions does on the RK ``basis``
-    and the call that does it right and fast."""
-    text = ("scikit-fem's loop over local functions (form.assemble(basis), skfem.asm) "
-            "reads RKBasis.basis: on an RK basis it is 100-1000 times slower than "
-            "skfem_rkpm.asm, which has skfem.asm's signature (from skfem_rkpm import asm; "
-            "for a composite basis rk * fem, assemble its blocks with it and join them "
-            "with scipy.sparse.bmat)")
+    and the call that does it right and fast: for ``call`` (``"skfem.asm"``
+    or ``"form.assemble"``, :data:`FAST_CALLS`) that call's replacement."""
+    if call in FAST_CALLS:
+        text = (f"{call} runs scikit-fem's loop over pairs of local functions, which on "
+                "an RK basis is 100-1000 times slower than skfem_rkpm.asm; use "
+                f"{FAST_CALLS[call]}")
+    else:
+        text = ("scikit-fem's loop over local functions (form.assemble(basis), skfem.asm) "
+                "reads RKBasis.basis: on an RK basis it is 100-1000 times slower than "
+                "skfem_rkpm.asm, which has skfem.asm's signature: "
+                f"{FAST_CALLS['skfem.asm']}; {FAST_CALLS['form.assemble']}")
+    text += ("; for a composite basis rk * fem, assemble its blocks with skfem_rkpm.asm "
+             "and join them with scipy.sparse.bmat")
     if getattr(basis, "trial", basis) is not basis:
         text += (". With integration='vci' the local functions carry the corrected "
                  "*test* gradients; a bilinear form that reads trial gradients gets them "
@@ -149,6 +197,8 @@ def assemble(form, ubasis, vbasis=None, **kwargs):
     """One form on one trial (and test) basis; see :func:`asm`."""
     form = _as_form(form)
     check_fields(ubasis, kwargs)
+    if _is_rk(ubasis):
+        check_interfaces(isinstance(form, BilinearForm), ubasis, kwargs)
     if isinstance(form, BilinearForm):
         vbasis = ubasis if vbasis is None else vbasis
         check_quadrature(ubasis, vbasis)

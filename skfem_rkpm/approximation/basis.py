@@ -26,7 +26,7 @@ from .dofs import RKDofs
 from .integration import cell_geometry, facet_geometry, vci_gradients
 from .reduction import WHOLE
 from .element_particles import (DEFAULT_INTORDER, DEFAULT_SUPPORT, element_degree,
-                                element_particles, scalar_element)
+                                element_particles, line_defaults, scalar_element)
 from .rk_base import RKBase
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
@@ -143,7 +143,9 @@ class RKBasis(CellViews, RKBase):
         :data:`.element_particles.DEFAULT_SUPPORT`).
     order : int
         Basis order ``N`` of Eq. (3.18): 0, 1 or 2.  Default: the degree of
-        the element given as ``vector``, else 1.
+        the element given as ``vector``, else 1.  On a 1D mesh, unless
+        ``order`` or ``integration`` is given: order 2, support 2.5 and
+        Gauss of degree 20 (:data:`.element_particles.LINE_DEFAULTS`).
     kernel : str or callable
         Window function, ``"cubic"`` (Eq. 3.12, default) or ``"quartic"``.
     support_shape : {"radial", "box"}
@@ -214,10 +216,14 @@ class RKBasis(CellViews, RKBase):
                  elements=None, interpolating=False, smoothing="median_dual",
                  reduction=None):
         element = scalar_element(vector)
+        self._element = vector if element is not None else None  # RKBasis.elem
         vector = field_is_vector(vector)
         particles = (element_particles(mesh, element)
                      if nodes is None and integration not in NODAL_SCHEMES else None)
         degree = 1 if element is None else element_degree(element)
+        if particles is not None or nodes is None:
+            order, support, intorder, integration = line_defaults(
+                mesh, degree, order, support, intorder, integration)
         order = degree if order is None else order
         support = DEFAULT_SUPPORT[degree if particles is not None else 1] \
             if support is None else support
@@ -290,7 +296,7 @@ class RKBasis(CellViews, RKBase):
         _check_distinct(nodes, self.radius)
         self._primitive = basis_primitive_radius(interpolating, nodes, self.radius)
         self.interpolating = self._primitive is not None
-        if self.interpolating and order == 2 and particles is not None:
+        if self.interpolating and order == 2 and particles is not None and mesh.dim() > 1:
             warnings.warn(
                 "interpolating RK functions of order 2 converge more slowly than the "
                 "plain ones: on P2 meshes of the unit square (Poisson) their L2 error "

@@ -31,9 +31,12 @@ import importlib
 import numpy as np
 from skfem import CellBasis, FacetBasis
 from skfem.element import (ElementHex1, ElementLineP1, ElementQuad1, ElementTetP1,
-                           ElementTriP1)
+                           ElementTriP1, ElementVector)
 from skfem.mesh import MeshHex1, MeshLine1, MeshQuad1, MeshTet1, MeshTri1
 from skfem.refdom import RefHex, RefLine, RefQuad, RefTet, RefTri
+
+from .basis_element import guarded_element, plain_element
+from .idiom_errors import BasisIdiomError, CoefficientsNotNodalError
 
 
 __all__ = ["BasisIdiomError", "CoefficientsNotNodalError", "CellViews", "FacetViews", "lagrange_element",
@@ -42,20 +45,6 @@ __all__ = ["BasisIdiomError", "CoefficientsNotNodalError", "CellViews", "FacetVi
 _LINEAR = {RefLine: (ElementLineP1, MeshLine1), RefTri: (ElementTriP1, MeshTri1),
            RefQuad: (ElementQuad1, MeshQuad1), RefTet: (ElementTetP1, MeshTet1),
            RefHex: (ElementHex1, MeshHex1)}
-
-
-class BasisIdiomError(NotImplementedError):
-    """A scikit-fem basis idiom an RK basis cannot honour as asked.
-
-    The message names what to use instead.
-    """
-
-
-class CoefficientsNotNodalError(BasisIdiomError, AttributeError):
-    """An idiom that would read RK coefficients as nodal values (``x[basis.nodal_dofs[0]]``).
-
-    Also an ``AttributeError``: ``hasattr(basis, "nodal_dofs")`` is False.
-    """
 
 
 def _linear(mesh):
@@ -86,7 +75,14 @@ class _DofIdioms:
         are nodal values) ``nodal_dofs`` (ncomp, nparticles) and empty facet,
         edge and interior dofs (on a quadratic element's particles, those of
         its FEM basis); a :class:`CoefficientsNotNodalError` otherwise."""
-        if getattr(self, "interpolating", False) and name != "dofs":
+        interpolating = getattr(getattr(self, "parent", self), "interpolating", False)
+        if interpolating and name == "dofs":
+            raise CoefficientsNotNodalError(
+                "an RK basis has no scikit-fem Dofs object (basis.dofs); its dof numbers "
+                "come from basis.get_dofs(facets) (x[basis.get_dofs(facets)] = g sets "
+                "nodal values on this interpolating basis), basis.nodal_dofs and "
+                "basis.split_indices()")
+        if interpolating:
             particles = getattr(getattr(self, "parent", self), "_element_particles", None)
             if particles is not None:
                 return particles.dof_array(name, self.ncomp)
@@ -105,6 +101,21 @@ class _DofIdioms:
     edge_dofs = property(lambda self: self._dof_array("edge_dofs"))
     interior_dofs = property(lambda self: self._dof_array("interior_dofs"))
     dofs = property(lambda self: self._dof_array("dofs"))
+
+    @property
+    def elem(self):
+        """The element the RK basis was built from (the mesh's lowest-order
+        Lagrange element, vector-valued for a vector basis, if none was given),
+        with scikit-fem's attributes; ``Basis(mesh, rk.elem, ...)`` raises a
+        :class:`BasisIdiomError` that names ``rk.with_elements(E)`` and
+        ``rk.with_element(rk.elem)`` (:mod:`.basis_element`)."""
+        cell = getattr(self, "parent", self)
+        element = getattr(cell, "_element", None)
+        if element is None:
+            element = lagrange_element(self.mesh)
+            if self.ncomp > 1:
+                element = ElementVector(element)
+        return guarded_element(element)
 
     def split_indices(self):
         """Coefficient numbers of each component: ``[arange(c, N, ncomp)]``.
@@ -157,7 +168,7 @@ class CellViews(_DofIdioms):
             Lagrange elements), the RK basis's are RK coefficients.
         """
         self._require_cells("with_element")
-        return CellBasis(self.mesh, elem, mapping=self.mapping,
+        return CellBasis(self.mesh, plain_element(elem), mapping=self.mapping,
                          quadrature=self.quadrature, elements=self.tind)
 
     def with_elements(self, elements=None):
@@ -399,6 +410,12 @@ class FacetViews(_DofIdioms):
     """scikit-fem's idioms on :class:`~skfem_rkpm.RKFacetBasis` (mixed in there)."""
 
     @property
+    def normals(self):
+        """Outward unit normals at the quadrature points, (dim, nfacets, nqp),
+        as scikit-fem's ``FacetBasis.normals``."""
+        return self.geometry.normals
+
+    @property
     def find(self):
         """Indices of the facets of this basis, as scikit-fem's ``FacetBasis.find``."""
         return self.geometry.find
@@ -406,7 +423,7 @@ class FacetViews(_DofIdioms):
     def with_element(self, elem):
         """An FEM ``FacetBasis`` of ``elem`` on the same facets and quadrature
         points (outward normals alike), for mixed RK x FEM boundary forms."""
-        return FacetBasis(self.mesh, elem, mapping=self.mapping,
+        return FacetBasis(self.mesh, plain_element(elem), mapping=self.mapping,
                           quadrature=self.quadrature, facets=self.find)
 
     def probes(self, x):
@@ -428,13 +445,50 @@ class FacetViews(_DofIdioms):
         raise BasisIdiomError("split the coefficients with the cell basis, "
                               "basis.split(x) (nodal values per component)")
 
-    def project(self, interp, **kwargs):
-        """Refused: an RK facet basis has no boundary-only dofs to project on."""
-        raise BasisIdiomError(
-            "an RK facet basis has no boundary-only dofs (every particle whose support "
-            "reaches the boundary has a function there, interior ones too); project "
-            "with the cell basis, basis.project(f), or prescribe boundary values with "
-            "skfem_rkpm.solve / skfem_rkpm.condense(..., basis=basis)")
+    def project(self, interp, facets=None, dtype=None):
+        """Boundary values on the facets of this basis, as scikit-fem's
+        ``FacetBasis.project`` is used: a vector that holds ``interp`` at
+        the dofs on the facets (here the particles on them) and zero
+        elsewhere, ready for ``condense(K, f, x=x, D=D)``.
+
+        On an interpolating basis the coefficients are nodal values, so the
+        values at the particles are taken as they are (``interp`` a number
+        or a callable of the coordinates, evaluated at the particles); for a
+        linear FEM trace this is what scikit-fem's L² projection on the
+        boundary gives for constant and linear ``interp``.  A basis without
+        ``interpolating=True`` has no boundary coefficients to set: a
+        :class:`BasisIdiomError` names the call that prescribes values there.
+        """
+        cell = self.parent
+        if dtype is not None and not np.issubdtype(dtype, np.floating):
+            raise BasisIdiomError(f"RK bases are real: project with dtype={dtype!r} "
+                                  "is not supported")
+        if not getattr(cell, "interpolating", False):
+            raise BasisIdiomError(
+                "an RK facet basis without interpolating=True has no boundary-only "
+                "coefficients to project on (its coefficients are not nodal values); "
+                "prescribe nodal values instead: x = basis.zeros(); "
+                "D = basis.get_dofs(facets); x[D] = value; then "
+                "skfem_rkpm.condense(K, f, x=x, D=D, basis=basis), or build the basis "
+                "with RKBasis(mesh, element, interpolating=True), on which "
+                "facet_basis.project(value) works as in scikit-fem")
+        dofs = np.asarray(cell.get_dofs(self.find if facets is None else facets))
+        x = cell.zeros()
+        if callable(interp):
+            locations = cell.doflocs[:, dofs]
+            values = np.asarray(interp(locations), dtype=float)
+            if cell.ncomp > 1 and values.ndim == 2:  # (ncomp, ndofs): the own component
+                values = values[dofs % cell.ncomp, np.arange(dofs.size)]
+        elif np.ndim(interp) == 0:
+            values = float(interp)
+        else:
+            raise BasisIdiomError(
+                "facet_basis.project on an RK basis takes a number or a callable of the "
+                "coordinates (evaluated at the boundary particles), not values at "
+                "quadrature points; for those, project(lambda x: ...) with the function "
+                "that gave them")
+        x[dofs] = values
+        return x
 
     def trace(self, *args, **kwargs):
         """Refused: evaluate the RK field on the boundary instead."""

@@ -97,3 +97,27 @@ def element_particles(mesh, element):
     np.minimum.at(spacing, dofs.ravel(),
                   np.broadcast_to(cell_spacing[None, :], dofs.shape).ravel())
     return ElementParticles(np.asarray(fem.doflocs, dtype=float), spacing, fem)
+
+
+#: the defaults of an RK basis on a 1D mesh (MeshLine), where linear FEM is
+#: nodally exact for Poisson problems (its Green's functions are piecewise
+#: linear) and an order-1 RK basis is not: scikit-fem's ex15 (-u'' = 1 on 9
+#: cells, P1) read u(4/9) 3.8e-4 off the exact 10/81 with order 1 (support
+#: 2-3, intorder 4-8, VCI or Gauss), and 3.9e-6 with order 2, support 2.5
+#: and Gauss of degree 12; 6.6e-8 with degree 20 (6.1e-7 at the worst vertex).  Order 2 reproduces the
+#: quadratic solution, and the Gauss rule is trial and test basis at once
+#: (``form.assemble(basis)``), which symmetric VCI is not at order 2.  11
+#: points per cell cost nothing in 1D (docs/rk_basis.md, "1D").
+LINE_DEFAULTS = {"order": 2, "support": 2.5, "intorder": 20, "integration": "gauss"}
+
+
+def line_defaults(mesh, degree, order, support, intorder, integration):
+    """``(order, support, intorder, integration)`` with the :data:`LINE_DEFAULTS`
+    of a 1D mesh filled in where the caller gave None; unchanged (None stays
+    None) on other meshes or when ``order``/``integration`` is given (the
+    caller chose the scheme)."""
+    if mesh.dim() != 1 or order is not None or integration is not None:
+        return order, support, intorder, integration
+    d = LINE_DEFAULTS
+    return (max(degree, d["order"]), d["support"] if support is None else support,
+            d["intorder"] if intorder is None else intorder, d["integration"])

@@ -8,13 +8,19 @@ the same values and gradients; ``side`` matters for what the basis is mixed
 with: ``with_element(elem)`` is the FEM ``InteriorFacetBasis`` of that side
 on the same facets and quadrature points, and ``w.n`` is scikit-fem's
 normal of the facet (the outward normal of side 0, on both sides).
+Interpolating a field here warns (:class:`~skfem_rkpm.indicators.ZeroJumpWarning`,
+once per basis): its jumps are zero, and an error indicator built on them
+reads nothing; :func:`skfem_rkpm.recovery_indicator` works on RK fields.
 """
+
+import warnings
 
 from skfem import InteriorFacetBasis
 
 from .basis import RKFacetBasis
 from .basis_views import BasisIdiomError
 from .integration import _lagrange_element
+from ..indicators import ZERO_JUMP_MESSAGE, ZeroJumpWarning
 
 __all__ = ["RKInteriorFacetBasis"]
 
@@ -56,6 +62,15 @@ class RKInteriorFacetBasis(RKFacetBasis):
         table = basis._shape_table(geometry.global_coordinates().reshape(mesh.dim(), -1))
         self.radius = basis.radius
         self._setup(mesh, geometry, table, basis.nodes, basis.vector, release=True)
+
+    def interpolate(self, w):
+        """The field on the facets, as on a cell basis; warns once
+        (:class:`~skfem_rkpm.indicators.ZeroJumpWarning`) that both sides
+        give the same values and gradients."""
+        if not getattr(self, "_jump_warned", False):
+            self._jump_warned = True
+            warnings.warn(ZERO_JUMP_MESSAGE, ZeroJumpWarning, stacklevel=2)
+        return super().interpolate(w)
 
     def with_element(self, elem):
         """The FEM ``InteriorFacetBasis`` of ``elem`` on the same side, facets

@@ -15,7 +15,7 @@ from skfem.assembly.basis import AbstractBasis
 from skfem.element import DiscreteField
 
 from . import cell_layout
-from ..forms import PairwiseLoopWarning, pairwise_loop_message
+from ..forms import PairwiseLoopWarning, pairwise_loop_message, scikit_fem_caller
 
 __all__ = ["RKBase"]
 
@@ -134,12 +134,15 @@ class RKBase(AbstractBasis):
         """Per local function a tuple ``(DiscreteField,)`` as in scikit-fem,
         read by scikit-fem's loop over local functions
         (``form.assemble(basis)``, ``skfem.asm``): warns with
-        :class:`~skfem_rkpm.forms.PairwiseLoopWarning` that names the fast
-        call (see :func:`~skfem_rkpm.forms.pairwise_loop_message`), once per basis.  Without
+        :class:`~skfem_rkpm.forms.PairwiseLoopWarning`, at the line that made
+        the call, with the fast replacement of that call (see
+        :func:`~skfem_rkpm.forms.pairwise_loop_message`), once per basis.  Without
         the warning: :attr:`local_fields`."""
         if not getattr(self, "_loop_warned", False):
             self._loop_warned = True
-            warnings.warn(pairwise_loop_message(self), PairwiseLoopWarning, stacklevel=2)
+            call, level = scikit_fem_caller()
+            warnings.warn(pairwise_loop_message(self, call), PairwiseLoopWarning,
+                          stacklevel=level)
         return self.local_fields
 
     @property

@@ -21,7 +21,6 @@ beside the files there, and still never replaces a file it did not write
 import argparse
 import contextlib
 import hashlib
-import math
 import shlex
 import sys
 import warnings
@@ -70,7 +69,7 @@ def _out(args, path, method, settings, suffix=""):
 
 def _run_one(path, settings, method, out, resume, quiet, trust_geo=False, overwrite=False):
     from .folder import RunFolder
-    from .runner import build, run, scene_step
+    from .runner import build, run, steps_finished
 
     scene = load_scene(path, settings)
     sim = build(scene, method, trust_geo=trust_geo)
@@ -105,9 +104,8 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False, overwr
     seconds = sum(r.seconds for r in result.history)
     if root:
         count = sim.scene["steps"]["count"]
-        done = scene_step(result.history[-1].t, count) if result.history else 0
-        if not result.completed and result.history:  # the last scene step is unfinished
-            done = math.floor(result.history[-1].t * count + 1e-9)
+        done = (steps_finished(result.history[-1].t, count, result.completed)
+                if result.history else 0)
         solved = len(result.history)
         cut = f" (in {solved} sub-steps)" if solved != done else ""
         print(f"{result.message}: {done} of {count} steps{cut}, {iterations} Newton "

@@ -40,7 +40,7 @@ from .rereference import rereferencing_of, solve_segments
 from .scene_dynamics import is_dynamic
 from .stops import stop_report
 
-__all__ = ["Simulation", "build", "run", "scene_step", "Progress", "scene_text",
+__all__ = ["Simulation", "build", "run", "scene_step", "steps_finished", "Progress", "scene_text",
            "final_state_message", "blas_threads"]
 
 #: environment variables read by BLAS libraries loaded later (a solver's own)
@@ -78,6 +78,15 @@ def scene_step(t, count):
     approach: ``ceil(t count)``.
     """
     return max(1, int(np.ceil(t * count - 1e-9)))
+
+
+def steps_finished(t, count, completed):
+    """How many of the scene's ``count`` steps a run ending at load factor
+    ``t`` finished: :func:`scene_step` of ``t`` for a run that completed or
+    stopped at a step's end, one fewer when it stopped inside a step."""
+    if completed:
+        return scene_step(t, count)
+    return int(np.floor(t * count + 1e-9))
 
 
 class Progress:

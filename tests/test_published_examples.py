@@ -189,7 +189,6 @@ def test_ex17_two_materials_warn_and_the_suggestions_run():
     assert cut <= FEM_FACTOR * fem, (cut, fem)
 
 
-@pytest.mark.slow
 def test_ex17_cut_supports_converge_like_fem():
     """1089 vertices: FEM 8.4e-4, smooth RK 9.1e-3 (10.8x), cut 5.8e-4 (0.68x);
     the cut error falls by about 4 per halving of h as FEM's does."""

@@ -1,5 +1,6 @@
 """scikit-fem's published examples ex15, ex17 and ex35 with FEM and with the
-documented swap ``RKBasis(mesh, element, interpolating=True)``: the error of
+documented swap ``RKBasis(mesh, element, interpolating=True)`` (for ex17 and
+ex35 also with the supports cut at the materials, ``interfaces=True``): the error of
 each quantity against its closed form and the CPU time of the whole example
 (``time.process_time``, median of ``--repeat`` runs, basis included).  The
 example drivers are those of ``tests/test_published_examples.py``.
@@ -42,8 +43,8 @@ def ex17(kind, n, conductivity, **options):
     return f"T(0) error {abs(value - exact):.1e}"
 
 
-def ex35(kind, n):
-    L, C, _ = ex.ex35(kind, ex.coax_mesh(n))
+def ex35(kind, n, **options):
+    L, C, _ = ex.ex35(kind, ex.coax_mesh(n), **options)
     L_exact, C_exact = ex.coax_exact()
     Z = np.sqrt(L / C) / np.sqrt(L_exact / C_exact) - 1
     return (f"L {abs(L / L_exact - 1):.1e}, C {abs(C / C_exact - 1):.1e}, "
@@ -57,6 +58,12 @@ CASES = [
     ("ex17 wire, k = 11 / 11, 289 vertices, Q1", lambda k: ex17(k, 8, (11.0, 11.0))),
     ("ex35 coax, 841 vertices, P1", lambda k: ex35(k, 1)),
     ("ex35 coax, 3249 vertices, P1", lambda k: ex35(k, 2)),
+    ("ex17, 289 vertices, RK interfaces=True", lambda k: ex17(k, 8, (101.0, 11.0),
+                                                              interfaces=True)),
+    ("ex17, 1089 vertices, RK interfaces=True", lambda k: ex17(k, 16, (101.0, 11.0),
+                                                               interfaces=True)),
+    ("ex35, 841 vertices, RK interfaces=True", lambda k: ex35(k, 1, interfaces=True)),
+    ("ex35, 3249 vertices, RK interfaces=True", lambda k: ex35(k, 2, interfaces=True)),
 ]
 
 

@@ -9,8 +9,10 @@ Measured on scikit-fem's published examples with the swap
 conductivities 101 and 11, Q1 on a disk of 289 and 1089 vertices) T(0)
 errors 6x and 11x FEM's; ex35 (coaxial cable, subdomain matrices with
 permittivities 2.1 ε₀ and ε₀, P1) the capacitance 12x and 26x FEM's
-(tests/test_published_examples.py, docs/rk_basis.md).  A smaller support
-(``support=1.5``) roughly halves those errors, which still converge as ``h``.
+(tests/test_published_examples.py, docs/rk_basis.md).  Supports cut at the
+interfaces, ``RKBasis(..., interfaces=True)`` (the visibility criterion,
+:mod:`skfem_rkpm.approximation.visibility`), bring them to 0.7x FEM's (ex17)
+and 1.8-1.9x (ex35's capacitance), second order again.
 
 :func:`check_interfaces` warns with :class:`MaterialInterfaceWarning` when
 a form on an RK basis meets
@@ -22,8 +24,9 @@ a form on an RK basis meets
   ``RKBasis(..., elements=...)``), the way matrices of subdomains with
   different coefficients are summed.
 
-The warning names what to do: an FEM basis for the problem, or a smaller
-support at the cost of ``h``-convergence.
+unless the basis cuts its supports there already (``interfaces=``: the jumps
+lie between its regions, the part is a union of them).  The warning names
+what to do: supports cut at the interfaces, or an FEM basis.
 """
 
 import warnings
@@ -32,19 +35,37 @@ import numpy as np
 from skfem.element import DiscreteField
 
 __all__ = ["MaterialInterfaceWarning", "check_interfaces", "jumping_coefficients",
-           "JUMP_FACTOR"]
+           "JUMP_FACTOR", "advice"]
 
 #: a coefficient jumps where the difference of its means in two neighbouring
 #: cells exceeds this many times its variation inside them (a smooth field
 #: differs by about its variation inside a cell; a P0 field does not vary)
 JUMP_FACTOR = 10.0
 
-ADVICE = ("smooth RK functions cannot follow the kink of the solution along a material "
-          "interface: the error converges as h, not h² (scikit-fem's ex17 and ex35 with "
-          "RKBasis(mesh, element, interpolating=True): 6-26x FEM's error); use FEM for "
-          "this problem, skfem.Basis(mesh, element), whose functions kink along the cell "
-          "edges, or a smaller support, RKBasis(mesh, element, interpolating=True, "
-          "support=1.5), which about halves the error")
+def advice(basis):
+    """What to do, for the mesh of ``basis``: ``interfaces=True`` if it has
+    subdomains, else the cells of each material."""
+    mesh = basis.mesh
+    cut = ("interfaces=True" if mesh.subdomains else
+           "interfaces=[E1, E2, ...] with the cells of each material")
+    where = (f"cuts the supports at the boundaries of mesh.subdomains "
+             f"{sorted(mesh.subdomains)}" if mesh.subdomains else
+             "cuts the supports at the boundaries of those cell sets")
+    return ("smooth RK functions cannot follow the kink of the solution along a material "
+            "interface: the error converges as h, not h² (scikit-fem's ex17 and ex35 with "
+            "RKBasis(mesh, element, interpolating=True): 6-26x FEM's error); build the "
+            f"basis as RKBasis(mesh, element, interpolating=True, {cut}), which {where} "
+            "(ex17 and ex35: 0.7-1.9x FEM's error), or use FEM, "
+            "skfem.Basis(mesh, element)")
+
+
+def _regions(basis):
+    """The region of every cell if ``basis`` cuts its supports, else None."""
+    for b in (basis, getattr(basis, "_whole", None)):
+        regions = getattr(b, "_regions", None)
+        if regions is not None:
+            return regions.cells
+    return None
 
 
 class MaterialInterfaceWarning(UserWarning):
@@ -75,6 +96,8 @@ def jumping_coefficients(basis, fields):
             or hasattr(basis, "parent"):  # nodal schemes and facet bases: no cells
         return out
     pairs = None
+    regions = _regions(basis)
+    cells = np.arange(basis.mesh.nelements) if basis.tind is None else np.asarray(basis.tind)
     for name, field in fields.items():
         value = np.asarray(field) if isinstance(field, DiscreteField) else field
         if not isinstance(value, np.ndarray) or value.ndim < 2 or \
@@ -85,6 +108,9 @@ def jumping_coefficients(basis, fields):
         if pairs is None:
             pairs = _cell_rows(basis)
         a, b = pairs
+        if regions is not None:  # jumps between regions are cut already
+            inside = regions[cells[a]] == regions[cells[b]]
+            a, b = a[inside], b[inside]
         mean = value.mean(axis=-1)
         spread = np.ptp(value, axis=-1)
         scale = np.abs(value).max()
@@ -103,10 +129,23 @@ def check_interfaces(bilinear, basis, fields, stacklevel=3):
     found = jumping_coefficients(basis, fields)
     for name, (facets, low, high) in found.items():
         warnings.warn(f"the coefficient {name!r} jumps between cells ({low:.4g} to "
-                      f"{high:.4g}, across {facets} interior facets): {ADVICE}",
+                      f"{high:.4g}, across {facets} interior facets): {advice(basis)}",
                       MaterialInterfaceWarning, stacklevel=stacklevel + 1)
-    if bilinear and getattr(basis, "_whole", None) is not None:
+    if bilinear and getattr(basis, "_whole", None) is not None and not _union_of_regions(
+            basis):
         warnings.warn(f"a bilinear form over {basis.nelems} of the "
                       f"{basis.mesh.nelements} cells (with_elements): if the parts of a "
-                      f"matrix summed from subdomains have different coefficients, {ADVICE}",
+                      f"matrix summed from subdomains have different coefficients, {advice(basis)}",
                       MaterialInterfaceWarning, stacklevel=stacklevel + 1)
+
+
+def _union_of_regions(basis):
+    """True if the cells of the part ``basis`` are whole regions of the
+    supports it cuts (no region partly inside)."""
+    regions = _regions(basis)
+    if regions is None:
+        return False
+    inside = np.zeros(basis.mesh.nelements, dtype=bool)
+    inside[np.asarray(basis.tind)] = True
+    return all(np.all(inside[regions == r]) or not np.any(inside[regions == r])
+               for r in np.unique(regions))

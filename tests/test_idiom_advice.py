@@ -225,3 +225,39 @@ def test_dofs_of_an_interpolating_basis_names_get_dofs():
     x[rk.get_dofs("left")] = 3.0
     np.testing.assert_allclose(rk.probes(np.array([[0.0], [0.25]])) @ x, 3.0, atol=1e-12)
     np.testing.assert_array_equal(rk.nodal_dofs[0], np.arange(rk.N))
+
+
+# material interfaces: the warning names supports cut at the subdomains
+
+def test_material_interface_warning_suggestion_runs():
+    """A P0 coefficient jumping at x = 1/2 on a mesh with subdomains: the
+    warning names ``RKBasis(mesh, element, interpolating=True,
+    interfaces=True)``; built as written, the form is quiet and the field
+    of the two-material problem, linear in each half with a kink at the
+    interface, is in the basis (reproduced to round-off)."""
+    mid = MESH.p[0, MESH.t].mean(axis=0)
+    mesh = MeshQuad().refined(3).with_subdomains({"a": np.flatnonzero(mid < 0.5),
+                                                  "b": np.flatnonzero(mid > 0.5)})
+    element = ElementQuad1()
+
+    @BilinearForm
+    def conduction(u, v, w):
+        return w["k"] * dot(grad(u), grad(v))
+
+    def k_of(basis):
+        b0 = basis.with_element(ElementQuad0())
+        k = b0.zeros() + 1.0
+        k[b0.get_dofs(elements="b")] = 4.0
+        return b0.interpolate(k)
+
+    rk = RKBasis(mesh, element, interpolating=True)
+    with pytest.warns(skfem_rkpm.MaterialInterfaceWarning,
+                      match=r"RKBasis\(mesh, element, interpolating=True, interfaces=True\)"):
+        skfem_rkpm.asm(conduction, rk, k=k_of(rk))
+    basis = RKBasis(mesh, element, interpolating=True, interfaces=True)  # as written
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", skfem_rkpm.MaterialInterfaceWarning)
+        skfem_rkpm.asm(conduction, basis, k=k_of(basis))
+    u = lambda x: np.where(x[0] < 0.5, 4 * x[0], 2.0 + (x[0] - 0.5))  # noqa: E731
+    np.testing.assert_allclose(np.asarray(basis.interpolate(u(basis.nodes))),
+                               u(np.asarray(basis.global_coordinates())), atol=1e-12)

@@ -33,6 +33,7 @@ from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
                                nodal_quadrature)
 from .interpolating import basis_primitive_radius, shape_functions
 from .shape import coordinates
+from .visibility import cut_supports
 
 __all__ = ["RKBasis", "RKFacetBasis"]
 
@@ -208,13 +209,20 @@ class RKBasis(CellViews, RKBase):
         ``reduction``, so that the gradients equal those of the whole basis
         restricted to ``elements``.  Needs ``elements`` and
         ``integration="vci"`` or ``"gauss"``.
+    interfaces : optional
+        Cut the supports at material interfaces (the visibility criterion,
+        :mod:`.visibility`): ``True`` for the boundaries of every subdomain
+        of ``mesh.subdomains``, or subdomain names or cell index arrays of
+        the materials.  The RK functions at a point are built from the
+        particles of its material only, the particles on an interface
+        shared: the functions kink there, as a two-material solution does.
     """
 
     def __init__(self, mesh, vector=False, support=None, order=None, kernel="cubic",
                  support_shape="radial", intorder=None, integration=None,
                  nodes=None, radius=None, axisymmetric=False, stabilization=0.0,
                  elements=None, interpolating=False, smoothing="median_dual",
-                 reduction=None):
+                 reduction=None, interfaces=None):
         element = scalar_element(vector)
         self._element = vector if element is not None else None  # RKBasis.elem
         vector = field_is_vector(vector)
@@ -294,6 +302,8 @@ class RKBasis(CellViews, RKBase):
                              + (" (a mesh vertex without cells has no spacing: remove "
                                 "unused vertices)" if from_spacing else ""))
         _check_distinct(nodes, self.radius)
+        self._regions = None if interfaces is None else cut_supports(
+            mesh, interfaces, particles, nodes, integration)
         self._primitive = basis_primitive_radius(interpolating, nodes, self.radius)
         self.interpolating = self._primitive is not None
         if self.interpolating and order == 2 and particles is not None and mesh.dim() > 1:
@@ -330,7 +340,11 @@ class RKBasis(CellViews, RKBase):
         # quadrature, particles), so that a too small support is reported
         # once, for all of them, with a dilation that works everywhere
         sizes = np.cumsum([0, xq.shape[1], xb.shape[1], nodes.shape[1]])
-        everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes)
+        labels = None if self._regions is None else np.concatenate([
+            self._regions.points_of_cells(geometry.tind, geometry.X.shape[-1]),
+            self._regions.points_of_cells(mesh.f2t[0, boundary.find], boundary.X.shape[-1]),
+            self._regions.particle_region])
+        everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes, labels=labels)
         # the cell rows stay views: laying them out below frees them array by array
         table, btable, ntable = (cell_layout.table_rows(everything, a, b, copy=a > 0)
                                  for a, b in zip(sizes[:-1], sizes[1:]))
@@ -383,12 +397,20 @@ class RKBasis(CellViews, RKBase):
         self.nodal_quadrature = q
         self._setup(mesh, q.geometry, q.table, nodes, vector)
 
-    def _shape_table(self, x, nodes=None, gradients=True):
-        return shape_functions(
-            x, self.nodes if nodes is None else nodes, self.radius, self.order,
-            self.kernel, self.support_shape, gradients=gradients,
-            dilation=self.dilation, primitive=self._primitive,
-        )
+    def _shape_table(self, x, nodes=None, gradients=True, labels=None):
+        nodes = self.nodes if nodes is None else nodes
+        regions = getattr(self, "_regions", None)
+        if regions is None:
+            return shape_functions(
+                x, nodes, self.radius, self.order, self.kernel, self.support_shape,
+                gradients=gradients, dilation=self.dilation, primitive=self._primitive)
+        primitive = self._primitive
+        return regions.table(x, regions.locate(x) if labels is None else labels,
+                             lambda y, m: shape_functions(
+                                 y, nodes[:, m], self.radius[m], self.order, self.kernel,
+                                 self.support_shape, gradients=gradients,
+                                 dilation=self.dilation,
+                                 primitive=None if primitive is None else primitive[m]))
 
     @property
     def trial(self):
@@ -563,7 +585,10 @@ class RKFacetBasis(FacetViews, RKBase):
         geometry = facet_geometry(mesh, basis.intorder if intorder is None
                                   else intorder, facets, quadrature)
         xb = geometry.global_coordinates().reshape(mesh.dim(), -1)
-        table = basis._shape_table(xb)
+        regions = getattr(basis, "_regions", None)
+        table = basis._shape_table(xb, labels=None if regions is None else
+                                   regions.points_of_cells(mesh.f2t[0, geometry.find],
+                                                           geometry.X.shape[-1]))
         self.radius = basis.radius
         self._setup(mesh, geometry, table, basis.nodes, basis.vector, release=True)
 

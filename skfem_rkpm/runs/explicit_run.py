@@ -297,7 +297,8 @@ def save_explicit_figures(sim, result, out, folder=None):
     from .folder import atomic_path
     from .plot import force_axis_label, plot_deformed
 
-    title = (f"{sim.scene['model']['title'] or 'run'} ({sim.method.upper()}, explicit)\n"
+    title = (f"{sim.scene['model']['title'] or 'run'} ({sim.method.upper()}, "
+             f"{dynamics_of(sim.scene)['scheme']})\n"
              f"t = {time_text(result.time)}")
     figures = {}
     if sim.mesh.dim() == 2:

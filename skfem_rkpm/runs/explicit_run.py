@@ -39,7 +39,8 @@ from .scene_dynamics import dynamics_of, initial_of
 from .stops import explicit_stop_report
 
 __all__ = ["ExplicitResult", "explicit_scheme", "initial_velocity", "run_explicit",
-           "history_row", "time_text", "summary", "save_explicit_figures", "console_run"]
+           "history_row", "dynamic_outputs", "time_text", "summary", "save_explicit_figures",
+           "console_run"]
 
 
 @dataclass
@@ -138,6 +139,26 @@ class _HistoryWriter:
             os.fsync(handle.fileno())
 
 
+def dynamic_outputs(stack, sim, out, overwrite=False):
+    """``(folder, history, fields)`` of a dynamic run into ``out`` (Nones
+    without it): the :class:`RunFolder` entered on ``stack``, the files of
+    an earlier run removed, ``status.txt`` "running", ``scene.toml``, the
+    ``history.csv`` writer and the field writer (with ``output.fields``)."""
+    if out is None:
+        return None, None, None
+    folder = stack.enter_context(RunFolder(out, overwrite=overwrite))
+    folder.remove_temporaries()
+    folder.clear()
+    folder.status(f"running (process {os.getpid()})")
+    folder.write("scene.toml", scene_text(sim))
+    folder.claim("history.csv")
+    history = _HistoryWriter(folder.path / "history.csv")
+    fields = None
+    if sim.scene["output"]["fields"]:
+        fields = FieldWriter(folder.path / "fields.xdmf", sim.problem, owner=folder)
+    return folder, history, fields
+
+
 def history_row(sim, probes, record, first):
     """One row of ``history.csv``: time, step, step size, energies, the tool
     forces (``reaction NAME x``, as static runs), tool gauges, followed points."""
@@ -217,17 +238,7 @@ def run_explicit(sim, out=None, progress=True, resume=False, overwrite=False):
     records, rows = [], []
     result = ExplicitResult(d0, records, rows, False, duration=duration)
     with ExitStack() as stack:
-        folder = history = fields = None
-        if out is not None:
-            folder = stack.enter_context(RunFolder(out, overwrite=overwrite))
-            folder.remove_temporaries()
-            folder.clear()
-            folder.status(f"running (process {os.getpid()})")
-            folder.write("scene.toml", scene_text(sim))
-            folder.claim("history.csv")
-            history = _HistoryWriter(folder.path / "history.csv")
-            if sim.scene["output"]["fields"]:
-                fields = FieldWriter(folder.path / "fields.xdmf", sim.problem, owner=folder)
+        folder, history, fields = dynamic_outputs(stack, sim, out, overwrite)
         interrupts = stack.enter_context(_Interrupts())
         bar = _Progress(duration, progress)
         every = sim.scene["output"]["every"]

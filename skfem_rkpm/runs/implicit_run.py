@@ -37,11 +37,10 @@ from ..mechanics.problem import InvertedElementError, NonFiniteError
 from ..solvers.linear import make_solver
 from ..solvers.newton import newton_steps
 from ..solvers.time_integration import Newmark
-from .explicit_run import (ExplicitResult, _HistoryWriter, _Progress, initial_velocity,
+from .explicit_run import (ExplicitResult, _Progress, dynamic_outputs, initial_velocity,
                            save_explicit_figures, time_text)
 from .folder import RunFolder
-from .io import FieldWriter
-from .runner import _gauges, _Interrupts, _point_probes, final_state_message, scene_text
+from .runner import _gauges, _Interrupts, _point_probes, final_state_message
 from .scene_dynamics import dynamics_of
 from .stops import _position_now
 
@@ -135,17 +134,7 @@ def run_implicit(sim, out=None, progress=True, resume=False, overwrite=False, lo
     records, rows = [], []
     result = ExplicitResult(np.zeros(sim.basis.N), records, rows, False, duration=duration)
     with ExitStack() as stack:
-        folder = history = fields = None
-        if out is not None:
-            folder = stack.enter_context(RunFolder(out, overwrite=overwrite))
-            folder.remove_temporaries()
-            folder.clear()
-            folder.status(f"running (process {os.getpid()})")
-            folder.write("scene.toml", scene_text(sim))
-            folder.claim("history.csv")
-            history = _HistoryWriter(folder.path / "history.csv")
-            if sim.scene["output"]["fields"]:
-                fields = FieldWriter(folder.path / "fields.xdmf", sim.problem, owner=folder)
+        folder, history, fields = dynamic_outputs(stack, sim, out, overwrite)
         interrupts = stack.enter_context(_Interrupts())
         bar = _Progress(duration, progress)
         every = sim.scene["output"]["every"]

@@ -40,7 +40,7 @@ from .stops import explicit_stop_report
 
 __all__ = ["ExplicitResult", "explicit_scheme", "initial_velocity", "run_explicit",
            "history_row", "dynamic_outputs", "time_text", "summary", "save_explicit_figures",
-           "console_run"]
+           "console_run", "console_finish"]
 
 
 @dataclass
@@ -355,10 +355,17 @@ def console_run(sim, out, quiet=False, resume=False, overwrite=False):
     print(f"{title}: {sim.method}, {sim.basis.N} dofs, explicit over "
           f"{time_text(dynamics_of(scene)['duration'])} -> {out}")
     result = run_explicit(sim, out, progress=not quiet, resume=resume, overwrite=overwrite)
-    if scene["output"]["figures"] and result.rows and out is not None:
+    return console_finish(sim, out, result, summary(result))
+
+
+def console_finish(sim, out, result, line):
+    """After a dynamic run on the console: its figures (with
+    ``output.figures``), the summary ``line`` and the stop report (on the
+    standard error)."""
+    if sim.scene["output"]["figures"] and result.rows and out is not None:
         with RunFolder(out, mode="add") as folder:
             save_explicit_figures(sim, result, folder.path, folder)
-    print(summary(result))
+    print(line)
     if result.report:
         print(result.report, file=sys.stderr)
     return result

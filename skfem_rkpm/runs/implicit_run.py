@@ -24,7 +24,6 @@ Implicit runs write no checkpoint and do not resume.
 """
 
 import os
-import sys
 import time as clock
 from contextlib import ExitStack
 from types import SimpleNamespace
@@ -37,9 +36,8 @@ from ..mechanics.problem import InvertedElementError, NonFiniteError
 from ..solvers.linear import make_solver
 from ..solvers.newton import newton_steps
 from ..solvers.time_integration import Newmark
-from .explicit_run import (ExplicitResult, _Progress, dynamic_outputs, initial_velocity,
-                           save_explicit_figures, time_text)
-from .folder import RunFolder
+from .explicit_run import (ExplicitResult, _Progress, console_finish, dynamic_outputs,
+                           initial_velocity, time_text)
 from .runner import _gauges, _Interrupts, _point_probes, final_state_message
 from .scene_dynamics import dynamics_of
 from .stops import _position_now
@@ -258,10 +256,4 @@ def console_run(sim, out, quiet=False, resume=False, overwrite=False):
     print(f"{title}: {sim.method}, {sim.basis.N} dofs, implicit ({method}) over "
           f"{time_text(dynamics['duration'])} in {implicit_steps(scene)} steps -> {out}")
     result = run_implicit(sim, out, progress=not quiet, resume=resume, overwrite=overwrite)
-    if scene["output"]["figures"] and result.rows and out is not None:
-        with RunFolder(out, mode="add") as folder:
-            save_explicit_figures(sim, result, folder.path, folder)
-    print(summary(result))
-    if result.report:
-        print(result.report, file=sys.stderr)
-    return result
+    return console_finish(sim, out, result, summary(result))

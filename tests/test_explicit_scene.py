@@ -243,10 +243,9 @@ nu = 0.35
     ("[material]\ndensity = -1.0", r"material.density: must be positive \(got -1.0\)"),
     ("[material]\ndensity = 0.0", r"material.density: must be positive \(got 0.0\)"),
     ('[dynamics]\nscheme = "implicit"\nduration = 1e-6',
-     r"dynamics.scheme: implicit time integration is not available in scenes; accepted "
-     r"schemes: 'static', 'explicit'"),
+     r"dynamics.scheme: implicit dynamics needs the mass: give material.density"),
     ('[dynamics]\nscheme = "newmark"', r"dynamics.scheme: must be one of 'static', "
-                                       r"'explicit' \(got 'newmark'\)"),
+                                       r"'implicit', 'explicit' \(got 'newmark'\)"),
     ('[dynamics]\nscheme = "explicit"\nduration = 1e-6',
      r"dynamics.scheme: explicit dynamics needs the mass: give material.density"),
     ("[material]\ndensity = 1e-9\n[dynamics]\nscheme = \"explicit\"",

@@ -73,8 +73,11 @@ def _run_one(path, settings, method, out, resume, quiet, trust_geo=False, overwr
 
     scene = load_scene(path, settings)
     sim = build(scene, method, trust_geo=trust_geo)
-    if is_dynamic(scene):  # central differences: runs/explicit_run.py
-        from .explicit_run import console_run
+    if is_dynamic(scene):  # runs/explicit_run.py, runs/implicit_run.py
+        if scene["dynamics"]["scheme"] == "implicit":
+            from .implicit_run import console_run
+        else:
+            from .explicit_run import console_run
 
         return sim, console_run(sim, out, quiet, resume, overwrite)
     root = is_root()  # under mpiexec only rank 0 writes and prints
@@ -137,7 +140,7 @@ def cmd_run(args):
                              args.trust_geo, args.overwrite)
     except KeyboardInterrupt:
         if is_dynamic(load_scene(path, settings)):
-            print(f"\ninterrupted: the outputs written so far are in {out}; an explicit "
+            print(f"\ninterrupted: the outputs written so far are in {out}; a dynamic "
                   f"run does not resume, run it again to start over", file=sys.stderr)
             return 130
         again = ["skfem-rkpm", "run", args.scene, *(f"--set={s}" for s in settings),

@@ -39,7 +39,8 @@ from .scene_dynamics import dynamics_of, initial_of
 from .stops import explicit_stop_report
 
 __all__ = ["ExplicitResult", "explicit_scheme", "initial_velocity", "run_explicit",
-           "history_row", "time_text", "summary", "save_explicit_figures", "console_run"]
+           "history_row", "dynamic_outputs", "time_text", "summary", "save_explicit_figures",
+           "console_run", "console_finish"]
 
 
 @dataclass
@@ -138,6 +139,26 @@ class _HistoryWriter:
             os.fsync(handle.fileno())
 
 
+def dynamic_outputs(stack, sim, out, overwrite=False):
+    """``(folder, history, fields)`` of a dynamic run into ``out`` (Nones
+    without it): the :class:`RunFolder` entered on ``stack``, the files of
+    an earlier run removed, ``status.txt`` "running", ``scene.toml``, the
+    ``history.csv`` writer and the field writer (with ``output.fields``)."""
+    if out is None:
+        return None, None, None
+    folder = stack.enter_context(RunFolder(out, overwrite=overwrite))
+    folder.remove_temporaries()
+    folder.clear()
+    folder.status(f"running (process {os.getpid()})")
+    folder.write("scene.toml", scene_text(sim))
+    folder.claim("history.csv")
+    history = _HistoryWriter(folder.path / "history.csv")
+    fields = None
+    if sim.scene["output"]["fields"]:
+        fields = FieldWriter(folder.path / "fields.xdmf", sim.problem, owner=folder)
+    return folder, history, fields
+
+
 def history_row(sim, probes, record, first):
     """One row of ``history.csv``: time, step, step size, energies, the tool
     forces (``reaction NAME x``, as static runs), tool gauges, followed points."""
@@ -217,17 +238,7 @@ def run_explicit(sim, out=None, progress=True, resume=False, overwrite=False):
     records, rows = [], []
     result = ExplicitResult(d0, records, rows, False, duration=duration)
     with ExitStack() as stack:
-        folder = history = fields = None
-        if out is not None:
-            folder = stack.enter_context(RunFolder(out, overwrite=overwrite))
-            folder.remove_temporaries()
-            folder.clear()
-            folder.status(f"running (process {os.getpid()})")
-            folder.write("scene.toml", scene_text(sim))
-            folder.claim("history.csv")
-            history = _HistoryWriter(folder.path / "history.csv")
-            if sim.scene["output"]["fields"]:
-                fields = FieldWriter(folder.path / "fields.xdmf", sim.problem, owner=folder)
+        folder, history, fields = dynamic_outputs(stack, sim, out, overwrite)
         interrupts = stack.enter_context(_Interrupts())
         bar = _Progress(duration, progress)
         every = sim.scene["output"]["every"]
@@ -297,7 +308,8 @@ def save_explicit_figures(sim, result, out, folder=None):
     from .folder import atomic_path
     from .plot import force_axis_label, plot_deformed
 
-    title = (f"{sim.scene['model']['title'] or 'run'} ({sim.method.upper()}, explicit)\n"
+    title = (f"{sim.scene['model']['title'] or 'run'} ({sim.method.upper()}, "
+             f"{dynamics_of(sim.scene)['scheme']})\n"
              f"t = {time_text(result.time)}")
     figures = {}
     if sim.mesh.dim() == 2:
@@ -343,10 +355,17 @@ def console_run(sim, out, quiet=False, resume=False, overwrite=False):
     print(f"{title}: {sim.method}, {sim.basis.N} dofs, explicit over "
           f"{time_text(dynamics_of(scene)['duration'])} -> {out}")
     result = run_explicit(sim, out, progress=not quiet, resume=resume, overwrite=overwrite)
-    if scene["output"]["figures"] and result.rows and out is not None:
+    return console_finish(sim, out, result, summary(result))
+
+
+def console_finish(sim, out, result, line):
+    """After a dynamic run on the console: its figures (with
+    ``output.figures``), the summary ``line`` and the stop report (on the
+    standard error)."""
+    if sim.scene["output"]["figures"] and result.rows and out is not None:
         with RunFolder(out, mode="add") as folder:
             save_explicit_figures(sim, result, folder.path, folder)
-    print(summary(result))
+    print(line)
     if result.report:
         print(result.report, file=sys.stderr)
     return result

@@ -168,7 +168,8 @@ def run(sim, out=None, progress=True, resume=False, log=None, overwrite=False):
     if is_dynamic(sim.scene):
         raise ValueError(f"this scene has dynamics.scheme = "
                          f"{sim.scene['dynamics']['scheme']!r}: run it with "
-                         f"skfem_rkpm.runs.explicit_run.run_explicit (skfem-rkpm run does)")
+                         f"skfem_rkpm.runs.{sim.scene['dynamics']['scheme']}_run."
+                         f"run_{sim.scene['dynamics']['scheme']} (skfem-rkpm run does)")
     out = Path(out) if out is not None else None
     solver = _linear_solver(sim)  # a missing solver package stops here, folder untouched
     with contextlib.ExitStack() as stack:

@@ -3,9 +3,11 @@
 the scene.
 
 ``[dynamics] scheme`` is ``"static"`` (the default: load steps solved by
-Newton, no inertia) or ``"explicit"`` (central differences with the lumped
-mass, :class:`~skfem_rkpm.solvers.explicit.CentralDifference`; time in
-seconds).  A static scene does not carry these keys at all: the
+Newton, no inertia), ``"implicit"`` (Newmark's trapezoidal rule or HHT-α
+with the lumped mass, :class:`~skfem_rkpm.solvers.time_integration.Newmark`,
+in the Newton loop: Eq. 3.38) or ``"explicit"`` (central differences with
+the lumped mass, :class:`~skfem_rkpm.solvers.explicit.CentralDifference`);
+dynamic time is in seconds.  A static scene does not carry these keys at all: the
 validated scene of a file without them is the one of the versions before
 them (its content hash, :func:`skfem_rkpm.runs.checkpoint.run_identity`,
 is unchanged), so :func:`dynamics_of` and :func:`initial_of` fill in the
@@ -15,20 +17,30 @@ defaults for readers.
 from .scene_geometry import model_dimension
 from .scene_values import Key, _positive
 
-__all__ = ["DENSITY", "DYNAMICS_SCHEMA", "INITIAL_SCHEMA", "OPTIONAL_SECTIONS", "SCHEMES",
-           "check_dynamics", "dynamics_of", "initial_of", "is_dynamic"]
+__all__ = ["DENSITY", "DYNAMICS_SCHEMA", "INITIAL_SCHEMA", "INTEGRATORS", "OPTIONAL_SECTIONS",
+           "SCHEMES", "check_dynamics", "dynamics_of", "initial_of", "is_dynamic"]
 
 #: the accepted values of ``dynamics.scheme``
-SCHEMES = ("static", "explicit")
+SCHEMES = ("static", "implicit", "explicit")
+
+#: the accepted values of ``dynamics.integrator`` (implicit scheme)
+INTEGRATORS = ("newmark", "hht")
 
 
 def _scheme(v):
-    if v in SCHEMES:
-        return None
-    if v == "implicit":
-        return (f"implicit time integration is not available in scenes; accepted schemes: "
-                f"{', '.join(map(repr, SCHEMES))}")
-    return f"must be one of {', '.join(map(repr, SCHEMES))}"
+    return None if v in SCHEMES else f"must be one of {', '.join(map(repr, SCHEMES))}"
+
+
+def _integrator(v):
+    return None if v in INTEGRATORS else (
+        f"must be one of {', '.join(map(repr, INTEGRATORS))} (newmark: the trapezoidal "
+        f"rule; hht: HHT-α, numerical damping of the high modes)")
+
+
+def _alpha(v):
+    return None if -1.0 / 3.0 - 1e-12 <= v <= 0.0 else (
+        "must lie in [-1/3, 0] (0: no damping, the trapezoidal rule; -1/3: the most "
+        "damping of high modes; -0.05 to -0.1 is usual)")
 
 
 def _safety(v):
@@ -43,18 +55,32 @@ def _velocity(v):
 DENSITY = Key("float", check=_positive,
               doc="reference density ρ₀ (mass per volume in the scene's units: t/mm³ in "
                   "mm, N, MPa, s, e.g. 8.93e-9 for copper); needed by dynamics.scheme = "
-                  "\"explicit\"")
+                  "\"implicit\" and \"explicit\"")
 
 DYNAMICS_SCHEMA = {
     "scheme": Key("str", "static", check=_scheme,
                   doc="static: load steps solved by Newton, without inertia ([steps]); "
+                      "implicit: time steps of dynamics.time_step solved by Newton with "
+                      "the inertia of the lumped mass (Newmark or HHT-α, Eq. 3.38; "
+                      "[steps] gives the tolerance, iterations and cut-backs); "
                       "explicit: central differences with the lumped mass, no linear "
-                      "solve, time in seconds (docs/dynamics.md) (static, explicit)"),
+                      "solve; time in seconds (docs/dynamics.md) (static, implicit, "
+                      "explicit)"),
+    "integrator": Key("str", check=_integrator,
+                      doc="implicit: newmark (the trapezoidal rule, β = 1/4, γ = 1/2: no "
+                          "numerical damping, energy kept to the Newton tolerance; the "
+                          "default) or hht (HHT-α with dynamics.alpha: damps the high "
+                          "modes)"),
+    "alpha": Key("float", check=_alpha,
+                 doc="implicit, integrator = \"hht\": α in [-1/3, 0] (default -0.1); "
+                     "β = (1 − α)²/4, γ = 1/2 − α"),
     "duration": Key("float", check=_positive,
-                    doc="explicit: the time simulated (s); tools reach their motion and "
+                    doc="implicit, explicit: the time simulated (s); tools reach their "
+                        "motion and "
                         "load histories their t = 1 at its end"),
     "output_interval": Key("float", check=_positive,
-                           doc="explicit: time between two rows of history.csv and two "
+                           doc="implicit, explicit: time between two rows of "
+                               "history.csv and two "
                                "field outputs (s; default: a tenth of duration); a row "
                                "is written at the first step at or after each output "
                                "time, and at the end"),
@@ -65,15 +91,19 @@ DYNAMICS_SCHEMA = {
     "estimate_every": Key("int", 50, check=_positive,
                           doc="explicit: steps between two estimates of the stable step"),
     "time_step": Key("float", check=_positive,
-                     doc="explicit: a fixed step (s) instead of the estimated one; above "
-                         "the stable step the run blows up"),
+                     doc="implicit (required): the time step (s), at most duration; "
+                         "duration is split into equal steps no longer than it, and "
+                         "Newton's step control halves a step that does not converge "
+                         "(steps.max_cutbacks) and lets it grow back to it; explicit: "
+                         "a fixed step instead of the estimated one; above the stable "
+                         "step the run blows up"),
 }
 
 INITIAL_SCHEMA = {
     "velocity": Key("list[float]", check=_velocity,
                     doc="initial velocity of the body, uniform: [x, y] (axisymmetric: "
                         "[r, z]; 3D: [x, y, z]) in length units per second; needs "
-                        "dynamics.scheme = \"explicit\""),
+                        "dynamics.scheme = \"implicit\" or \"explicit\""),
 }
 
 #: sections that a scene carries only when its file (or a --set) gives them
@@ -112,13 +142,19 @@ def check_dynamics(scene, fail):
     if scheme == "static":
         if velocity is not None:
             fail("initial.velocity", "an initial velocity needs a dynamics scheme: set "
-                                     "dynamics.scheme = \"explicit\" (and "
-                                     "material.density, dynamics.duration)")
-        for key in ("duration", "output_interval", "time_step"):
+                                     "dynamics.scheme = \"explicit\" or \"implicit\" "
+                                     "(and material.density, dynamics.duration)")
+        for key in ("duration", "output_interval", "time_step", "integrator", "alpha"):
             if dynamics[key] is not None:
                 fail(f"dynamics.{key}", "only for a dynamics scheme: set dynamics.scheme "
-                                        "= \"explicit\", or remove the key")
+                                        "= \"explicit\" or \"implicit\", or remove the key")
         return
+    if scheme == "explicit":
+        for key in ("integrator", "alpha"):
+            if dynamics[key] is not None:
+                fail(f"dynamics.{key}", "only for dynamics.scheme = \"implicit\" (the "
+                                        "explicit scheme is central differences): remove "
+                                        "the key")
     if scene["material"].get("density") is None:
         fail("dynamics.scheme", f"{scheme} dynamics needs the mass: give material.density "
                                 f"(t/mm³ in mm, N, MPa, s; 8.93e-9 for copper)")
@@ -128,7 +164,33 @@ def check_dynamics(scene, fail):
     if interval is not None and interval > dynamics["duration"]:
         fail("dynamics.output_interval", f"is longer than duration "
                                          f"({dynamics['duration']!r} s): at most the duration")
+    if scheme == "implicit":
+        _check_implicit(scene, dynamics, fail)
+        return
     _check_explicit_conditions(scene, fail)
+
+
+def _check_implicit(scene, dynamics, fail):
+    """The implicit scheme's keys: a time step within the duration, α only
+    with HHT-α."""
+    step = dynamics["time_step"]
+    if step is None:
+        fail("dynamics", "implicit dynamics needs 'time_step', the time step (s), e.g. a "
+                         "hundredth of duration (the step control cuts it back when "
+                         "Newton does not converge)")
+    if step > dynamics["duration"]:
+        fail("dynamics.time_step", f"is longer than duration ({dynamics['duration']!r} "
+                                   f"s): at most the duration")
+    if dynamics["duration"] / step > 1e6:
+        fail("dynamics.time_step", f"gives {dynamics['duration'] / step:.3g} steps over "
+                                   f"the duration: at most 1e6 (a longer step)")
+    if dynamics["alpha"] is not None and (dynamics["integrator"] or "newmark") != "hht":
+        fail("dynamics.alpha", "only for integrator = \"hht\" (newmark is α = 0): set "
+                               "dynamics.integrator = \"hht\" or remove alpha")
+    for name, section in scene.items():
+        if name.startswith("tools.") and section.get("force") is not None:
+            fail(f"{name}.force", "a force-driven tool is not available in implicit "
+                                  "dynamics: give the tool a motion")
 
 
 def _check_explicit_conditions(scene, fail):

@@ -22,8 +22,12 @@ iteration of a size that takes too long to complete; the projection of
 the whole run is ``build + (time per iteration) x (iterations of the whole
 run at the next smaller size)`` and is printed as such.
 
-Each case appends one JSON line to ``--json``; ``--figure PATH`` draws
-the parts per iteration against the unknowns from that file.
+A run stopped by SIGINT or SIGTERM (``timeout``) or out of memory still
+reports what it measured, marked ``stopped``.  Each case appends one JSON line to ``--json``; ``--figure PATH`` draws
+from that file, against the unknowns, the whole iteration and each part
+per call (one tangent, one factorization, one solid or contact
+evaluation); a factorization that ran out of memory is drawn as a lower
+bound (an open triangle).
 
 One core: the thread variables are set before numpy is imported.
 
@@ -38,13 +42,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from _timing import resident_mb  # noqa: E402
 from iteration_share import PARTS, _Clock, _instrument  # noqa: E402
 
-SHOWN = ("Newton", "assembly", "factorization", "solid", "contact")
 
 
 class _Enough(Exception):
@@ -84,6 +88,26 @@ def _stop_at_tangent(problem, tangents, patches):
     problem.Evaluation.K = property(K)
 
 
+def _watch_factors(backend, seen, patches):
+    """Keep in ``seen`` the size of the last matrix factored, its entries
+    and, for SuperLU, the entries of its factors."""
+    inner = backend.Solver._factor_timed
+
+    def factor(self, A):
+        out = inner(self, A)
+        lu = getattr(self, "_lu", None)
+        seen.update(n=int(A.shape[0]), nnz=int(getattr(A, "nnz", A.size)),
+                    factor_nnz=int(lu.L.nnz + lu.U.nnz) if hasattr(lu, "L") else None,
+                    solver=self.describe())
+        print(f"factorization {self.stats['factorizations']}: {seen}, "
+              f"CPU {time.process_time():.1f} s, peak {resident_mb():.0f} MB",
+              file=sys.stderr, flush=True)
+        return out
+
+    patches.append((backend.Solver, "_factor_timed", inner))
+    backend.Solver._factor_timed = factor
+
+
 def measure(method, divisions, steps=None, tangents=None):
     """One case: a dict of the measured numbers (see the module docstring)."""
     from skfem_rkpm.runs import runner
@@ -98,21 +122,31 @@ def measure(method, divisions, steps=None, tangents=None):
     build = time.process_time() - start
     unknowns = int(sim.problem.N)
     build_mb = resident_mb()
+    print(f"built: {unknowns} unknowns, {build:.1f} s, peak {build_mb:.0f} MB",
+          file=sys.stderr, flush=True)
     clock, patches, history = _Clock(), [], []
     _stop_after(runner, steps, history, patches)
     _instrument(clock, patches)
+    from skfem_rkpm.solvers import backend
+    factored = {}
+    _watch_factors(backend, factored, patches)
     if tangents:
         from skfem_rkpm.mechanics import problem
         _stop_at_tangent(problem, tangents, patches)
+    stopped = None
     try:
         runner.run(sim, None, progress=False)
     except _Enough:
         pass
+    except (KeyboardInterrupt, MemoryError) as err:  # a time limit (SIGINT, SIGTERM) or the cap
+        stopped = type(err).__name__
     finally:
         for owner, name, value in reversed(patches):
             setattr(owner, name, value)
-    return _summary(method, divisions, unknowns, build, build_mb, load, clock, history,
-                    steps, tangents)
+    row = _summary(method, divisions, unknowns, build, build_mb, load, clock, history,
+                   steps, tangents)
+    row["factored"], row["stopped"] = factored, stopped
+    return row
 
 
 def _summary(method, divisions, unknowns, build, build_mb, load, clock, history, steps,
@@ -140,33 +174,52 @@ def _summary(method, divisions, unknowns, build, build_mb, load, clock, history,
     }
 
 
+#: the parts drawn: (label, part, per what) -- per call of the part, so that
+#: the first steps (more factorizations per iteration: the predictions) and
+#: whole runs compare
+DRAWN = (("whole iteration", "Newton", "iteration"), ("tangent (assembly)", "assembly", "call"),
+         ("one factorization", "factorization", "call"), ("solid evaluation", "solid", "call"),
+         ("contact evaluation", "contact", "call"))
+
+
+def per_call(row, part, per):
+    """CPU seconds of ``part`` per iteration (per tangent for a run stopped
+    inside a step) or per call, and whether it is only a lower bound (a
+    factorization that did not finish)."""
+    seconds = row["seconds"][part]
+    if per == "iteration":
+        count = row["tangents"] if row.get("tangents_asked") else row["iterations"]
+        return seconds / max(count, 1), False
+    unfinished = part == "factorization" and row.get("stopped") and not row["factored"]
+    return seconds / max(row["calls"][part], 1), bool(unfinished)
+
+
 def figure(rows, path):
-    """Parts per iteration against the unknowns, FEM and RKPM, log-log."""
+    """Parts per iteration or call against the unknowns, FEM and RKPM, log-log."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True)
     for ax, method, title in zip(axes, ("fem", "rkpm"), ("FEM Hex1", "RKPM")):
         cases = sorted((r for r in rows if r["method"] == method),
                        key=lambda r: r["unknowns"])
-        for part, marker in zip(SHOWN, "osd^v"):
-            n = [r["unknowns"] for r in cases]
-            ms = [r["per_iteration_ms"][part] for r in cases]
-            ax.loglog(n, ms, marker=marker, label="whole iteration" if part == "Newton"
-                      else part)
-        for r in cases:
-            if r["steps_asked"] or r.get("tangents_asked"):
-                what = (f"first {r['tangents']} tangents" if r.get("tangents_asked")
-                        else f"first {r['steps_done']} steps")
-                ax.annotate(what, (r["unknowns"],
-                            r["per_iteration_ms"]["Newton"]), textcoords="offset points",
-                            xytext=(-60, 8), fontsize=8)
+        for (label, part, per), marker in zip(DRAWN, "osd^v"):
+            points = [(r["unknowns"], *per_call(r, part, per)) for r in cases]
+            done = [(n, t) for n, t, low in points if not low]
+            if part == "Newton":  # a run stopped in its first tangent has no iteration
+                done = [(n, t) for (n, t), r in zip(done, cases) if r["tangents"] > 1]
+            line, = ax.loglog(*zip(*done), marker=marker, label=f"{label} (per {per})")
+            for n, t, low in points:
+                if low:
+                    ax.plot(n, t, marker="^", ms=11, color=line.get_color(), mfc="none")
+                    ax.annotate("not finished:\nout of memory\n(14 GB cap)", (n, t),
+                                textcoords="offset points", xytext=(-80, -32), fontsize=7)
         ax.set_title(f"billet_3d, {title}")
         ax.set_xlabel("unknowns")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("CPU per Newton iteration (ms)")
-    axes[1].legend(fontsize=8)
+    axes[0].set_ylabel("CPU seconds (one core)")
+    axes[0].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
 

@@ -14,25 +14,24 @@ records
   (imports included).
 
 ``--tangents N`` stops before the tangent N + 1 is formed, inside a step;
-the parts are then per tangent (whole runs of the billet form 0.9-1 tangent
-per iteration: the ``calls`` recorded say how many).
+the whole iteration is then per tangent (the whole runs of the billet
+form one tangent per iteration: the ``calls`` recorded say how many).
 ``--steps N`` stops after N converged steps of the scene's 50 (the
 first steps of the whole run, same step size): enough to measure an
-iteration of a size that takes too long to complete; the projection of
-the whole run is ``build + (time per iteration) x (iterations of the whole
-run at the next smaller size)`` and is printed as such.
+iteration of a size that takes too long to complete, and project the
+whole run from the iterations of a smaller size.
 
 A run stopped by SIGINT or SIGTERM (``timeout``) or out of memory still
-reports what it measured, marked ``stopped``.  Each case appends one JSON line to ``--json``; ``--figure PATH`` draws
-from that file, against the unknowns, the whole iteration and each part
-per call (one tangent, one factorization, one solid or contact
-evaluation); a factorization that ran out of memory is drawn as a lower
-bound (an open triangle).
+reports what it measured, marked ``stopped``.  Each case appends one JSON
+line to ``--json``; ``--figure PATH`` draws from that file, against the
+unknowns, the whole iteration and each part per call (one tangent, one
+factorization, one solid or contact evaluation); a factorization that ran
+out of memory is drawn as a lower bound (an open triangle).
 
 One core: the thread variables are set before numpy is imported.
 
 Run:  python benchmarks/real_size.py --method fem --divisions 16 8 12 --steps 5 --json j.jsonl
-      python benchmarks/real_size.py --from-json j.jsonl --figure docs/figures/real_size.png
+      python benchmarks/real_size.py --from-json j.jsonl --figure docs/figures/real_size_billet.png
 """
 
 import os

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from skfem_rkpm.runs.cli import main
-from skfem_rkpm.runs.folder import MARKER, FolderError, RunFolder
+from skfem_rkpm.runs.folder import MARKER, FolderError, RunFolder, status_on_failure
 
 SMALL = ["steps.count=6", "geometry.divisions=[6,4]", "discretization.support=12",
          "output.figures=false"]
@@ -275,3 +275,24 @@ def test_a_sweep_trusts_only_the_result_its_run_wrote(tmp_path):
     assert _finished(ours) == record
     (ours / "result.json").write_text(json.dumps(dict(record, status="failed")))
     assert _finished(ours) is None  # a failed run is tried again
+
+
+def test_a_failing_block_leaves_its_status_and_raises_on(tmp_path):
+    """An interrupt writes the caller's message, any other exception its type
+    and text; both propagate, and a block that ends normally writes none."""
+    with RunFolder(tmp_path / "run") as folder:
+        with status_on_failure(folder, lambda: "interrupted after step 3"):
+            pass
+        assert not (folder.path / "status.txt").exists()
+        with pytest.raises(KeyboardInterrupt):
+            with status_on_failure(folder, lambda: "interrupted after step 3"):
+                raise KeyboardInterrupt("SIGTERM")
+        assert (folder.path / "status.txt").read_text() == "interrupted after step 3\n"
+        with pytest.raises(ZeroDivisionError):
+            with status_on_failure(folder, lambda: "never used"):
+                1 / 0
+        assert (folder.path / "status.txt").read_text() == (
+            "failed: ZeroDivisionError: division by zero\n")
+    with pytest.raises(ValueError):
+        with status_on_failure(None, lambda: "no folder"):
+            raise ValueError("nothing is written without a folder")

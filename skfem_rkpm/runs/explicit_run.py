@@ -32,7 +32,7 @@ import numpy as np
 from ..approximation.constraints import nodal_constraint
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 from ..solvers.explicit import CentralDifference
-from .folder import RunFolder, open_append, write_atomic
+from .folder import RunFolder, open_append, status_on_failure, write_atomic
 from .io import FieldWriter
 from .runner import _gauges, _Interrupts, _point_probes, final_state_message, scene_text
 from .scene_dynamics import dynamics_of, initial_of
@@ -61,6 +61,14 @@ class ExplicitResult:
     time: float = 0.0
     duration: float = 0.0
     cpu_seconds: float = 0.0
+
+
+def interrupted_text(result, scheme):
+    """The status of a dynamic run stopped by Ctrl-C or SIGTERM: how far it
+    got, and that it does not resume."""
+    return (f"interrupted after t = {time_text(result.time)} (step {result.steps}): the "
+            f"rows and fields written so far are kept; an {scheme} run does not resume, "
+            f"run it again")
 
 
 def time_text(seconds):
@@ -256,28 +264,19 @@ def run_explicit(sim, out=None, progress=True, resume=False, overwrite=False):
             bar(record)
 
         start = clock.process_time()
-        try:
-            scheme.run(d0, v0, duration=duration, dt=dynamics["time_step"],
-                       output_interval=interval, external=external, on_output=on_output)
-        except (InvertedElementError, NonFiniteError) as error:
-            result.error = error
-            result.steps = getattr(error, "step", result.steps)
-            result.time = getattr(error, "time", result.time)
-            if getattr(error, "d", None) is not None:
-                result.d = error.d
-        except KeyboardInterrupt:
-            if folder is not None:
-                folder.status(f"interrupted after t = {time_text(result.time)} (step "
-                              f"{result.steps}): the rows and fields written so far are "
-                              f"kept; an explicit run does not resume, run it again")
-            raise
-        except BaseException as err:
-            if folder is not None:
-                folder.status(f"failed: {type(err).__name__}: {err}")
-            raise
-        finally:
-            bar.close()
-            result.cpu_seconds = clock.process_time() - start
+        with status_on_failure(folder, lambda: interrupted_text(result, "explicit")):
+            try:
+                scheme.run(d0, v0, duration=duration, dt=dynamics["time_step"],
+                           output_interval=interval, external=external, on_output=on_output)
+            except (InvertedElementError, NonFiniteError) as error:
+                result.error = error
+                result.steps = getattr(error, "step", result.steps)
+                result.time = getattr(error, "time", result.time)
+                if getattr(error, "d", None) is not None:
+                    result.d = error.d
+            finally:
+                bar.close()
+                result.cpu_seconds = clock.process_time() - start
         if result.error is None:
             result.completed = True
             result.message = final_state_message(sim, result.d)

@@ -406,3 +406,22 @@ class RunFolder:
     def status(self, text):
         """Replace ``status.txt``."""
         self.write("status.txt", text.rstrip("\n") + "\n")
+
+
+@contextlib.contextmanager
+def status_on_failure(folder, interrupted):
+    """Write ``status.txt`` of ``folder`` (a :class:`RunFolder`, or ``None``
+    for no folder) when the block ends by an exception, then re-raise it:
+    ``interrupted()`` (called then, so it can name how far the run got) on
+    Ctrl-C or SIGTERM (``KeyboardInterrupt``), ``failed: <type>: <text>``
+    on any other exception."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        if folder is not None:
+            folder.status(interrupted())
+        raise
+    except BaseException as err:
+        if folder is not None:
+            folder.status(f"failed: {type(err).__name__}: {err}")
+        raise

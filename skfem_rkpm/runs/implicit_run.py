@@ -37,7 +37,8 @@ from ..solvers.linear import make_solver
 from ..solvers.newton import newton_steps
 from ..solvers.time_integration import Newmark
 from .explicit_run import (ExplicitResult, _Progress, console_finish, dynamic_outputs,
-                           initial_velocity, time_text)
+                           initial_velocity, interrupted_text, time_text)
+from .folder import status_on_failure
 from .runner import _gauges, _Interrupts, _point_probes, final_state_message
 from .scene_dynamics import dynamics_of
 from .stops import _position_now
@@ -175,27 +176,18 @@ def run_implicit(sim, out=None, progress=True, resume=False, overwrite=False, lo
                 state["iterations"] = 0
 
         start = clock.process_time()
-        try:
-            outcome = newton_steps(sim.problem, sim.prescribed, load=sim.load, steps=count,
-                                   tol=steps["tolerance"],
-                                   max_iterations=steps["max_iterations"],
-                                   max_cutbacks=steps["max_cutbacks"], log=log,
-                                   contributions=sim.contributions, on_step=on_step,
-                                   linear_solver=solver, increment=scheme)
-        except KeyboardInterrupt:
-            if folder is not None:
-                folder.status(f"interrupted after t = {time_text(result.time)} (step "
-                              f"{result.steps}): the rows and fields written so far are "
-                              f"kept; an implicit run does not resume, run it again")
-            raise
-        except BaseException as err:
-            if folder is not None:
-                folder.status(f"failed: {type(err).__name__}: {err}")
-            raise
-        finally:
-            bar.close()
-            solver.reset()
-            result.cpu_seconds = clock.process_time() - start
+        with status_on_failure(folder, lambda: interrupted_text(result, "implicit")):
+            try:
+                outcome = newton_steps(sim.problem, sim.prescribed, load=sim.load, steps=count,
+                                       tol=steps["tolerance"],
+                                       max_iterations=steps["max_iterations"],
+                                       max_cutbacks=steps["max_cutbacks"], log=log,
+                                       contributions=sim.contributions, on_step=on_step,
+                                       linear_solver=solver, increment=scheme)
+            finally:
+                bar.close()
+                solver.reset()
+                result.cpu_seconds = clock.process_time() - start
         result.completed = outcome.completed
         if outcome.completed:
             result.message = final_state_message(sim, outcome.d)

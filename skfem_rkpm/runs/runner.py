@@ -33,7 +33,7 @@ from ..solvers.partitioned import DistributedLU
 from ..solvers.petsc import is_root
 from .build import Simulation, build
 from .checkpoint import load_checkpoint, run_identity, save_checkpoint
-from .folder import RunFolder, open_append
+from .folder import RunFolder, open_append, status_on_failure
 from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
                  nodal_displacements, record_from_json, record_to_json)
 from .rereference import rereferencing_of, solve_segments
@@ -309,19 +309,15 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, ga
                             contributions=sim.contributions, on_step=on_step,
                             linear_solver=solver, stepper=start.stepper)
 
+    def interrupted():
+        last = (f"after step {history[-1].step}, t = {history[-1].t:.6g}" if history
+                else "before the first step")
+        return f"interrupted {last}: continue with --resume"
+
     try:
-        result = (solve(None) if rereferencing is None
-                  else solve_segments(rereferencing, solve, start.stepper))
-    except KeyboardInterrupt:
-        if folder is not None:
-            last = (f"after step {history[-1].step}, t = {history[-1].t:.6g}" if history
-                    else "before the first step")
-            folder.status(f"interrupted {last}: continue with --resume")
-        raise
-    except BaseException as err:
-        if folder is not None:
-            folder.status(f"failed: {type(err).__name__}: {err}")
-        raise
+        with status_on_failure(folder, interrupted):
+            result = (solve(None) if rereferencing is None
+                      else solve_segments(rereferencing, solve, start.stepper))
     finally:
         bar.close()
     result.history = history

@@ -33,6 +33,19 @@ def test_the_samples_fill_the_reference_cell_corners_included(kind, per_axis, co
         reference_samples(mesh, 1)
 
 
+def test_a_large_mesh_is_sampled_more_sparsely_down_to_its_corners():
+    """By default at most MAX_SAMPLES = 1e5 samples: 5 x 5 on 16 x 8 cells,
+    4 x 4 on 100 x 50 (20 per cell would fit), the 4 corners on 150 x 75
+    (8.9 per cell would fit, fewer than 3 x 3)."""
+    from skfem_rkpm.mechanics import map_validity as mv
+
+    assert mv.MAX_SAMPLES == 100_000
+    for n, per_cell in ((16, 25), (100, 16), (150, 4)):
+        mesh = rectangle(2.0, 1.0, n, n // 2)
+        sampler = MapSampler(Basis(mesh, ElementVector(ElementQuad1())))
+        assert sampler.per_cell == per_cell
+
+
 def test_a_homogeneous_map_has_its_determinant_everywhere():
     """u = A X: det F = det(I + A) at every sample (plane strain), and the
     hoop stretch 1 + a of u_r = a R multiplies it (axisymmetric)."""

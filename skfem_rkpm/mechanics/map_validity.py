@@ -27,6 +27,9 @@ __all__ = ["MapSampler", "MapValidity", "reference_samples", "map_validity"]
 
 #: sample points per reference axis by default: 5 x 5 in 2D, 4 x 4 x 4 in 3D
 PER_AXIS = {2: 5, 3: 4}
+#: samples of a mesh by default at most (fewer per axis on large meshes, the
+#: corners always): the shape functions at 1e5 points take ~0.1 GB in 3D
+MAX_SAMPLES = 100_000
 
 
 def reference_samples(mesh, per_axis=None):
@@ -101,7 +104,9 @@ class MapSampler:
         ``1 + u_r/R`` multiplies the in-plane ``det F`` (on the axis, where
         ``u_r/R`` has the limit ``∂u_r/∂R``, that one).
     per_axis : int, optional
-        Sample points per reference axis (:func:`reference_samples`).
+        Sample points per reference axis (:func:`reference_samples`); by
+        default :data:`PER_AXIS`, fewer where the mesh would have more than
+        :data:`MAX_SAMPLES` (2, the corners, at the least).
     """
 
     def __init__(self, basis, model="plane_strain", per_axis=None):
@@ -113,9 +118,12 @@ class MapSampler:
             raise ValueError(f"model {model!r} on a {self.dim}D mesh: use \"3d\" for 3D "
                              f"meshes and \"plane_strain\" or \"axisymmetric\" for 2D ones")
         self.basis, self.model = basis, model
+        self.ncells = mesh.t.shape[1]
+        if per_axis is None:
+            fit = int(np.floor((MAX_SAMPLES / self.ncells) ** (1.0 / self.dim) + 1e-9))
+            per_axis = max(2, min(PER_AXIS.get(self.dim, 5), fit))
         ref = reference_samples(mesh, per_axis)
         self.per_cell = ref.shape[1]
-        self.ncells = mesh.t.shape[1]
         self.X = mesh.mapping().F(ref)  # (dim, ncells, n)
         self.kind = "RK" if hasattr(basis, "_shape_table") else "FEM"
         if self.kind == "RK":

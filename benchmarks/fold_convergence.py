@@ -89,8 +89,8 @@ def first_fold(curve):
     """The height reductions (%) of the first steps with a folded drawn
     cell and with a folded map (None: none folds; "?": not recorded)."""
     r = curve[0]
-    return tuple("?" if count is None else
-                 (float(r[np.argmax(count > 0)]) if (count > 0).any() else None)
+    return tuple("not recorded" if count is None else
+                 (f"{r[np.argmax(count > 0)]:.1f} %" if (count > 0).any() else "none")
                  for count in curve[3:5])
 
 
@@ -121,7 +121,7 @@ def main(argv=None):
             status = (out / "status.txt").read_text().strip()
             drawn, mapped = first_fold(curves[case])
             print(f"| {case} | {curves[case][0][-1]:.1f} % | {ending(status)} | "
-                  f"drawn cell folds at {drawn} % | map folds at {mapped} % |")
+                  f"first drawn cell folded: {drawn} | first map fold: {mapped} |")
     for friction in FRICTIONS:
         for option in OPTIONS:
             pair = [curves.get(f"{friction}-{option}-{r}") for r in RESOLUTIONS]

@@ -120,7 +120,9 @@ def main(argv=None):
             curves[case] = history(out, travel)
             status = (out / "status.txt").read_text().strip()
             drawn, mapped = first_fold(curves[case])
-            print(f"| {case} | {curves[case][0][-1]:.1f} % | {ending(status)} | "
+            end = (status.splitlines()[0] if status.startswith(("running", "interrupted"))
+                   else ending(status))
+            print(f"| {case} | {curves[case][0][-1]:.1f} % | {end} | "
                   f"first drawn cell folded: {drawn} | first map fold: {mapped} |")
     for friction in FRICTIONS:
         for option in OPTIONS:
@@ -151,13 +153,15 @@ def figure(curves, path):
 
     panels = 3 if any(c[5] is not None for c in curves.values()) else 2
     fig, axes = plt.subplots(1, panels, figsize=(4.8 * panels, 4))
+    pairs = list(dict.fromkeys(case.rsplit("-", 1)[0] for case in curves))
     for case, curve in curves.items():
         r, idc, force = curve[:3]
-        style = "-" if case.endswith("paper") else "--"
-        axes[0].plot(r, idc, style, label=case)
-        axes[1].plot(r, force / 1e3, style, label=case)
+        style = dict(ls="-" if case.endswith("paper") else "--",
+                     color=f"C{pairs.index(case.rsplit('-', 1)[0])}", label=case)
+        axes[0].plot(r, idc, **style)
+        axes[1].plot(r, force / 1e3, **style)
         if panels == 3 and curve[5] is not None:
-            axes[2].plot(r, curve[5], style, label=case)
+            axes[2].plot(r, curve[5], **style)
     axes[0].set_ylabel("change of inner diameter at mid-height (%)")
     axes[1].set_ylabel("platen force, full ring (kN)")
     if panels == 3:

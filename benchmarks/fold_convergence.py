@@ -7,16 +7,20 @@ resolution (15 x 10 cells, 16 x 11 particles, support 6 mm = 3 h) and at
 with the same load step (0.114 mm of platen travel).  Each case runs into
 its own folder under ``--out`` (a finished one is reused: only its
 ``status.txt`` and ``history.csv`` are read); the script prints each
-case's end and, at 70 % and 80 % height reduction, the ID change and the
-platen force of both resolutions and their differences.
+case's end, the CPU time and load of each run, the first height reduction
+at which a drawn cell and the RK map itself fold (the ``history.csv``
+columns ``drawn folded cells`` and ``map folded cells``), and at 50-80 %
+height reduction the ID change and the platen force of both resolutions,
+their differences and whether they meet the targets (2 points, 3 %).
 
     python benchmarks/fold_convergence.py --out results/foldconv [--case NAME ...]
-        [--figure docs/figures/large_deformation_convergence.png]
+        [--figure docs/figures/large_deformation_resolutions.png]
 """
 
 import argparse
 import csv
 import os
+import resource
 import sys
 import time
 from pathlib import Path
@@ -37,6 +41,8 @@ OPTIONS = {"nofbar": ["discretization.locking=none"], "auto": [],
            "nofbar280": ["discretization.locking=none", "steps.count=280"]}
 CASES = {f"{f}-{o}-{r}": (f, o, r) for f in FRICTIONS for o in OPTIONS for r in RESOLUTIONS}
 COMMON = ["output.fields=false", "output.figures=false", "steps.max_iterations=40"]
+#: the targets of two resolutions: ID change within 2 points, force within 3 %
+TARGET_ID, TARGET_FORCE = 2.0, 3.0
 
 
 def settings(case):
@@ -57,23 +63,40 @@ def run_case(out, case):
     if status.is_file() and not status.read_text().startswith("running"):
         return None
     scene = load_scene(builtin_scenes()["ring"], settings(case))
+    load = os.getloadavg()[0]
     clock = time.process_time()
     run(build(scene, "rkpm"), out, progress=False)
-    return time.process_time() - clock
+    seconds = time.process_time() - clock
+    print(f"{case}: {seconds:.1f} s CPU in the run, load {load:.1f} -> "
+          f"{os.getloadavg()[0]:.1f}", file=sys.stderr, flush=True)
+    return seconds
 
 
 def history(out, travel):
-    """(height reduction %, ID change %, platen force N) along a run's history."""
+    """(height reduction %, ID change %, platen force N, drawn folded cells,
+    map folded cells, map det F min) along a run's history (the last three
+    None for a history without those columns)."""
     rows = list(csv.DictReader(open(out / "history.csv", newline="")))
     t = np.array([float(r["t"]) for r in rows])
     inner = np.array([float(r["inner_mid x"]) for r in rows])
     force = np.abs([float(r["reaction platen y"]) for r in rows])
-    return 100.0 * t * travel / HEIGHT, 100.0 * (inner - INNER) / INNER, force
+    folds = [np.array([float(r[key]) for r in rows]) if rows and key in rows[0] else None
+             for key in ("drawn folded cells", "map folded cells", "map det F min")]
+    return (100.0 * t * travel / HEIGHT, 100.0 * (inner - INNER) / INNER, force, *folds)
+
+
+def first_fold(curve):
+    """The height reductions (%) of the first steps with a folded drawn
+    cell and with a folded map (None: none folds; "?": not recorded)."""
+    r = curve[0]
+    return tuple("not recorded" if count is None else
+                 (f"{r[np.argmax(count > 0)]:.1f} %" if (count > 0).any() else "none")
+                 for count in curve[3:5])
 
 
 def at(curve, reduction):
     """ID change and force interpolated at a height reduction (None past the end)."""
-    r, idc, force = curve
+    r, idc, force = curve[:3]
     if r[-1] < reduction - 1e-9:
         return None
     return float(np.interp(reduction, r, idc)), float(np.interp(reduction, r, force))
@@ -91,14 +114,16 @@ def main(argv=None):
     for case in args.case or CASES:
         out = args.out / case
         if not args.no_run:
-            seconds = run_case(out, case)
-            if seconds is not None:
-                print(f"{case}: {seconds:.1f} s CPU", file=sys.stderr, flush=True)
+            run_case(out, case)
         if (out / "history.csv").is_file():
             travel = FRICTIONS[CASES[case][0]][1]
             curves[case] = history(out, travel)
             status = (out / "status.txt").read_text().strip()
-            print(f"| {case} | {curves[case][0][-1]:.1f} % | {ending(status)} |")
+            drawn, mapped = first_fold(curves[case])
+            end = (status.splitlines()[0] if status.startswith(("running", "interrupted"))
+                   else ending(status))
+            print(f"| {case} | {curves[case][0][-1]:.1f} % | {end} | "
+                  f"first drawn cell folded: {drawn} | first map fold: {mapped} |")
     for friction in FRICTIONS:
         for option in OPTIONS:
             pair = [curves.get(f"{friction}-{option}-{r}") for r in RESOLUTIONS]
@@ -109,26 +134,48 @@ def main(argv=None):
                 if None in values:
                     continue
                 (i1, f1), (i2, f2) = values
+                df = 100 * (f2 - f1) / f1
+                met = abs(i2 - i1) <= TARGET_ID and abs(df) <= TARGET_FORCE
                 print(f"| {friction} | {option} | {reduction:.0f} % | {i1:.1f} | {i2:.1f} | "
                       f"{i2 - i1:+.1f} | {f1 / 1e3:.0f} | {f2 / 1e3:.0f} | "
-                      f"{100 * (f2 - f1) / f1:+.1f} % |")
+                      f"{df:+.1f} % | {'yes' if met else 'no'} |")
     if args.figure and curves:
-        import matplotlib.pyplot as plt
+        figure(curves, args.figure)
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    print(f"whole process: {usage.ru_utime + usage.ru_stime:.1f} s CPU, load now "
+          f"{os.getloadavg()[0]:.1f}", file=sys.stderr)
 
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-        for case, (r, idc, force) in curves.items():
-            ls = "-" if case.endswith("paper") else "--"
-            a1.plot(r, idc, ls, label=case)
-            a2.plot(r, force / 1e3, ls, label=case)
-        a1.set_xlabel("height reduction (%)")
-        a1.set_ylabel("change of inner diameter at mid-height (%)")
-        a2.set_xlabel("height reduction (%)")
-        a2.set_ylabel("platen force, full ring (kN)")
-        a1.legend(fontsize=7)
-        fig.suptitle("Ring, RKPM Gauss+VCI: paper resolution (solid) and 2x (dashed)")
-        fig.tight_layout()
-        args.figure.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(args.figure, dpi=120)
+
+def figure(curves, path):
+    """ID change, platen force and the map's smallest det F against the
+    height reduction, paper resolution solid, 2x dashed."""
+    import matplotlib.pyplot as plt
+
+    panels = 3 if any(c[5] is not None for c in curves.values()) else 2
+    fig, axes = plt.subplots(1, panels, figsize=(4.8 * panels, 4))
+    pairs = list(dict.fromkeys(case.rsplit("-", 1)[0] for case in curves))
+    for case, curve in curves.items():
+        r, idc, force = curve[:3]
+        style = dict(ls="-" if case.endswith("paper") else "--",
+                     color=f"C{pairs.index(case.rsplit('-', 1)[0])}", label=case)
+        axes[0].plot(r, idc, **style)
+        axes[1].plot(r, force / 1e3, **style)
+        if panels == 3 and curve[5] is not None:
+            axes[2].plot(r, curve[5], **style)
+    axes[0].set_ylabel("change of inner diameter at mid-height (%)")
+    axes[1].set_ylabel("platen force, full ring (kN)")
+    if panels == 3:
+        axes[2].axhline(0.0, color="k", lw=0.8)
+        axes[2].set_ylabel("smallest det F of the RK map (sampled, 1)")
+    for ax in axes:
+        ax.set_xlabel("height reduction (%)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Ring, RKPM Gauss+VCI: paper resolution 15 x 10 cells (solid), "
+                 "2x 30 x 20 (dashed)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":

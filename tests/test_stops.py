@@ -105,9 +105,21 @@ def test_newton_that_does_not_converge_is_named_with_more_steps(tmp_path):
     result = runner.run(sim, tmp_path, progress=False)
     assert not result.completed
     assert "cause: Newton did not converge: no convergence in 2 iterations" in result.report
-    assert "to go further: more load steps (--set steps.count=4) or more cut-backs " \
-           "(--set steps.max_cutbacks=4)" in result.report
+    # the iterations a step are named with the number the run allowed (2),
+    # besides more steps and cut-backs; the console and status.txt say the same
+    advice = ("to go further: more Newton iterations a step (--set steps.max_iterations=4; "
+              "this run allowed 2), more load steps (--set steps.count=4) or more "
+              "cut-backs (--set steps.max_cutbacks=4)")
+    assert advice in result.report
+    assert advice in (tmp_path / "status.txt").read_text()
     assert "reached t = 0 of 1 (0.0 % height reduction) in 0 converged steps" in result.report
+    # the last converged state (at rest) folds nowhere: 24 drawn cells, and the
+    # map's 25 samples in each of them at det F = 1 to round-off
+    state = re.search(r"last converged state: no drawn cell folded \(of 24\); the FEM map "
+                      r"itself is valid: det F >= ([\d.e+-]+) at all 600 sample points",
+                      result.report)
+    assert state, result.report
+    assert float(state[1]) == pytest.approx(1.0, abs=1e-12)
 
 
 def test_a_refused_rebuild_is_named_and_the_run_goes_on(tmp_path):

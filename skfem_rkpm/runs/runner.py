@@ -33,9 +33,9 @@ from ..solvers.partitioned import DistributedLU
 from ..solvers.petsc import is_root
 from .build import Simulation, build
 from .checkpoint import load_checkpoint, run_identity, save_checkpoint
+from .fold_report import drawn_cells, fold_columns, map_check
 from .folder import RunFolder, open_append, status_on_failure
-from .io import (FieldWriter, HistoryFile, corner_jacobians, material_fields,
-                 nodal_displacements, record_from_json, record_to_json)
+from .io import FieldWriter, HistoryFile, material_fields, record_from_json, record_to_json
 from .rereference import rereferencing_of, solve_segments
 from .scene_dynamics import is_dynamic
 from .stops import stop_report
@@ -289,6 +289,7 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, ga
         gauges = _gauges(sim, probes[id(sim.basis)], d)
         for tool in sim.tools:
             gauges.update(tool.gauges(record.t))
+        gauges.update(fold_columns(sim, d))
         history.append(record)
         rows.append(gauges)
         gathered = _gathered(sim, record, evaluation) if gather else None
@@ -339,18 +340,23 @@ def final_state_message(sim, d):
     corner with the smallest ``det F`` when a cell of the final state is
     folded (:func:`~skfem_rkpm.runs.io.corner_jacobians`): Newton checks
     ``det F`` at the quadrature points only, so a corner may fold while
-    every step converges."""
-    mesh = sim.basis.mesh
-    J = corner_jacobians(mesh, nodal_displacements(sim.basis, d))
-    bad = J <= 0
-    if not bad.any():
+    every step converges.  Either says whether the deformation map itself
+    folds (:func:`~skfem_rkpm.runs.fold_report.map_check`: sampled in every
+    cell) or only the drawn cells do."""
+    folded, where = drawn_cells(sim, d)
+    check = map_check(sim, d)
+    if not folded.size and (check is None or check.valid):
         return "completed"
-    cell, corner = np.unravel_index(np.argmin(J), J.shape)
-    X = mesh.p[:, mesh.t[corner, cell]]
-    return (f"completed with inverted cells: det F = {J[cell, corner]:.3g} <= 0 at the "
-            f"corner X = ({', '.join(f'{v:.4g}' for v in X)}) of cell {cell} ({int(bad.any(axis=1).sum())} "
-            f"of {J.shape[0]} cells folded); the final state is not a valid deformation: "
-            f"use more load steps, a finer mesh or another discretization")
+    invalid = ("the final state is not a valid deformation: use more load steps, a finer "
+               "mesh or another discretization")
+    if not folded.size:
+        return f"completed with a folded map: {check.describe()}; {invalid}"
+    if check is None:
+        return f"completed with inverted cells: {where}; {invalid}"
+    if check.valid:
+        return (f"completed with inverted cells: {where}; {check.describe()}: only the "
+                f"drawn cells fold")
+    return f"completed with inverted cells: {where}; {check.describe()}; {invalid}"
 
 
 def scene_text(sim):

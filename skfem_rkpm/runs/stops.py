@@ -7,7 +7,12 @@ A run that does not complete says, on the console and in ``status.txt``:
 - what failed: the quadrature point or particle whose ``det F`` went
   non-positive (where it started and where it is now), a Newton step that
   did not converge, or contact multipliers that did not settle;
-- which option would go further, for that cause and this discretization.
+- the folds of the last converged state: the drawn cells with a corner at
+  ``det F <= 0`` and whether the deformation map itself folds there
+  (:func:`~skfem_rkpm.runs.fold_report.last_state`);
+- which option would go further, for that cause and this discretization
+  (for a Newton step that did not converge: more iterations a step, with
+  the ``steps.max_iterations`` the run allowed, more load steps, cut-backs).
 
 An explicit run (:func:`explicit_stop_report`) says the time it reached
 and the explicit step that failed instead of load factors and Newton.
@@ -16,6 +21,7 @@ and the explicit step that failed instead of load factors and Newton.
 import numpy as np
 
 from ..mechanics.problem import InvertedElementError, NonFiniteError
+from .fold_report import last_state
 
 __all__ = ["height_reduction", "stop_report", "explicit_stop_report"]
 
@@ -102,7 +108,14 @@ def _cause(sim, result):
                 "--set tools.NAME.enforcement=penalty, or " + more_steps)
     if scheme != "fem":
         more_steps = _rereferencing(sim) + more_steps
-    return f"Newton did not converge: {text}", more_steps
+    return f"Newton did not converge: {text}", _more_iterations(sim) + more_steps
+
+
+def _more_iterations(sim):
+    """More Newton iterations a step, with the number this run allowed."""
+    used = sim.scene["steps"]["max_iterations"]
+    return (f"more Newton iterations a step (--set steps.max_iterations={2 * used}; "
+            f"this run allowed {used}), ")
 
 
 def _rereferencing(sim):
@@ -128,8 +141,10 @@ def _rereferencing(sim):
 def stop_report(sim, result):
     """The lines a run that stopped writes to the console and ``status.txt``."""
     failed, advice = _cause(sim, result)
-    return "\n".join([f"stopped: {_reached(sim, result)}", f"cause: {failed}",
-                      f"to go further: {advice}"])
+    lines = [f"stopped: {_reached(sim, result)}", f"cause: {failed}"]
+    if result.d is not None and not getattr(sim.problem, "partitioned", False):
+        lines.append(f"last converged state: {last_state(sim, result.d)}")
+    return "\n".join([*lines, f"to go further: {advice}"])
 
 
 def explicit_stop_report(sim, result):

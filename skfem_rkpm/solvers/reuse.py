@@ -11,7 +11,8 @@ s, GMRES on the next iteration's matrix preconditioned by the last LU 1.57 s
 ``inner`` (direct) backend; the next matrix ``A`` is not factored: each solve
 runs GMRES on ``A M⁻¹ y = b``, ``x = M⁻¹ y`` (right preconditioning, so that
 GMRES's residual is the true one, ``|b - A x|``).  When GMRES does not reach
-the relative residual ``rtol`` within ``maxiter`` iterations, ``A`` is factored
+the relative residual ``rtol`` within as many iterations as cost one
+factorization (:meth:`Reusing.cap`, measured as the run goes), ``A`` is factored
 after all (a *fallback*, counted in ``stats``) and solved directly; that
 factorization is the preconditioner of the next matrices.
 
@@ -30,6 +31,8 @@ the whole saddle-point system replaces the GMRES on the multipliers with an
 exact ``K_ρ⁻¹`` inside (:func:`saddle_point`).
 """
 
+import time
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator, gmres, splu
@@ -37,7 +40,7 @@ from scipy.sparse.linalg import LinearOperator, gmres, splu
 from .backend import Solver, _canonical
 
 __all__ = ["Reusing", "reusing", "REUSE_MODES", "REUSE_LIMIT", "NEWTON_FRACTION",
-           "MAX_ITERATIONS", "preconditioned_gmres", "saddle_point"]
+           "MAX_ITERATIONS", "MIN_ITERATIONS", "preconditioned_gmres", "saddle_point"]
 
 #: ``reuse_factorization``: ``"off"`` (factor every matrix), ``"on"`` (reuse
 #: the last factorization at every size), ``"auto"`` (from :data:`REUSE_LIMIT`
@@ -50,8 +53,15 @@ REUSE_LIMIT = 20000
 #: the linear relative residual over the Newton tolerance
 NEWTON_FRACTION = 1e-3
 
-#: GMRES iterations of one reused solve before the matrix is factored
-MAX_ITERATIONS = 40
+#: GMRES iterations of one reused solve before the matrix is factored: at
+#: most this many, and at most as many as cost one factorization (measured
+#: as the run goes), but at least ``MIN_ITERATIONS``
+MAX_ITERATIONS = 100
+MIN_ITERATIONS = 10
+
+#: a reused solve that needs more than this fraction of its cap of GMRES
+#: iterations makes the next matrix factored (a fresh preconditioner)
+REFRESH = 0.5
 
 #: backends whose factorization can be kept: the sparse direct ones (dense LU
 #: of the small systems it is chosen for costs no more than a few solves)
@@ -94,10 +104,11 @@ class Reusing(Solver):
         super().__init__(inner.symmetric, **inner.options)
         self.inner, self.min_size, self.rtol, self.maxiter = inner, min_size, rtol, maxiter
         self.name = inner.name
-        self.stale = False
+        self.stale = self.refresh = False
         self.stats = inner.stats
         self.stats.update(reused=0, gmres_iterations=0, fallbacks=0)
         self.iterations = []  # GMRES iterations of each reused solve
+        self._gmres_seconds = 0.0
 
     @property
     def spd_only(self):
@@ -113,6 +124,8 @@ class Reusing(Solver):
         False."""
         A = _canonical(A)
         kept = self.inner.A
+        if self.refresh:  # the last reused solve was slow: a new preconditioner
+            reuse, self.refresh = False, False
         if reuse and kept is not None and kept.shape == A.shape and A.shape[0] >= self.min_size:
             self.A, self.stale = A, True
             self.stats["reused"] += 1
@@ -125,15 +138,34 @@ class Reusing(Solver):
         """Factor the kept matrix after all (GMRES stalled on it)."""
         self.stats["fallbacks"] += 1
         self.inner.factor(self.A)
-        self.stale = False
+        self.stale = self.refresh = False
 
     def precondition(self, b):
         """``M⁻¹ b`` with the kept factorization."""
         return self.inner.solve(b)
 
-    def counted(self, iterations):
-        self.iterations.append(iterations)
-        self.stats["gmres_iterations"] += iterations
+    def cap(self):
+        """GMRES iterations allowed: as many as cost one factorization (the
+        mean CPU of this backend's factorizations over that of its GMRES
+        iterations so far), within ``MIN_ITERATIONS`` and ``maxiter``."""
+        factored, iterated = self.stats["factorizations"], self.stats["gmres_iterations"]
+        if not (factored and iterated and self._gmres_seconds > 0):
+            return self.maxiter
+        ratio = (self.stats["factor_seconds"] / factored) / (self._gmres_seconds / iterated)
+        return int(min(self.maxiter, max(MIN_ITERATIONS, ratio)))
+
+    def gmres(self, matvec, precondition, b):
+        """:func:`preconditioned_gmres` with this backend's tolerance and
+        :meth:`cap`, counted; more than ``REFRESH`` of the cap make the next
+        matrix factored.  Returns ``x`` or None when GMRES stalls."""
+        cap = self.cap()
+        clock = time.perf_counter()
+        x, its, converged = preconditioned_gmres(matvec, precondition, b, self.rtol, cap)
+        self._gmres_seconds += time.perf_counter() - clock
+        self.iterations.append(its)
+        self.stats["gmres_iterations"] += its
+        self.refresh = its > REFRESH * cap
+        return x if converged else None
 
     def solve(self, b):
         """Solve ``A x = b`` (the solves are counted in ``inner.stats``)."""
@@ -146,10 +178,8 @@ class Reusing(Solver):
             columns = b.T if b.ndim == 2 else [b]
             solved = []
             for column in columns:
-                x, its, converged = preconditioned_gmres(
-                    self.A.dot, self.precondition, column, self.rtol, self.maxiter)
-                self.counted(its)
-                if not converged:
+                x = self.gmres(self.A.dot, self.precondition, column)
+                if x is None:
                     break
                 solved.append(x)
             else:
@@ -164,7 +194,8 @@ class Reusing(Solver):
 
     def describe(self):
         return (f"{self.inner.describe()}; the last factorization reused by GMRES "
-                f"(relative residual {self.rtol:.0e}, at most {self.maxiter} iterations)"
+                f"(relative residual {self.rtol:.0e}, at most one factorization's worth of "
+                f"iterations)"
                 + (f" from {self.min_size} unknowns on" if self.min_size else ""))
 
 
@@ -185,18 +216,20 @@ def saddle_point(backend, K, rho, f, C, g):
     factorization of an earlier ``K_ρ`` (``backend``, a stale
     :class:`Reusing`), or None when GMRES stalls.
 
-    The system in the augmented form with its second row scaled by ``ρ``
-    (forces in both rows), ``[[K_ρ, Cᵀ], [ρC, 0]] [d; μ] = [f + ρCᵀg; ρg]``
-    with ``μ = -λ``, is preconditioned from the right by the block triangle
-    ``P = [[M, Cᵀ], [0, -1]]``, ``M`` the kept factorization: with ``M = K_ρ``
-    the preconditioned matrix is ``[[1, 0], [ρ C K_ρ⁻¹, ρ C K_ρ⁻¹ Cᵀ]]``,
-    whose eigenvalues are 1 and those of the Schur complement operator the
-    direct path iterates on (:func:`~skfem_rkpm.solvers.constrained.
+    With ``d = d₀ + e``, ``d₀ = Cᵀ (CCᵀ)⁻¹ g`` (``CCᵀ`` factored once per
+    set of rows), ``e`` solves the system with ``C e = 0``; in the augmented
+    form with its second row scaled by ``ρ`` (forces in both rows),
+    ``[[K_ρ, Cᵀ], [ρC, 0]] [e; μ] = [f - K d₀; 0]`` with ``μ = -λ``.  It is
+    preconditioned from the right by the block triangle ``P = [[M, Cᵀ],
+    [0, -1]]``, ``M`` the kept factorization: with ``M = K_ρ`` the
+    preconditioned matrix is ``[[1, 0], [ρ C K_ρ⁻¹, ρ C K_ρ⁻¹ Cᵀ]]``, whose
+    eigenvalues are 1 and those of the Schur complement operator the direct
+    path iterates on (:func:`~skfem_rkpm.solvers.constrained.
     _schur_complement_solve`), so GMRES needs about as many iterations as
-    that one, each with one solve by ``M``.  ``d`` is then corrected onto
-    ``C d = g`` (least squares, ``CCᵀ`` factored once per set of rows), and
-    the residual of the first row, ``|f - K d + Cᵀ λ|``, must be at most
-    ``rtol`` of the right-hand side.
+    that one, each with one solve by ``M``.  ``e`` is then projected onto
+    ``C e = 0`` (``C d = g`` to round-off, as Newton's test of the prescribed
+    values needs), and the residual of the first row, ``|f - K d + Cᵀ λ|``,
+    must be at most ``rtol |f - K d₀|``.
     """
     N, m = K.shape[0], C.shape[0]
     Krho, CT = backend.A, sp.csr_matrix(C.T)
@@ -209,15 +242,15 @@ def saddle_point(backend, K, rho, f, C, g):
         u, v = y[:N], y[N:]
         return np.concatenate([backend.precondition(u + CT @ v), -v])
 
-    b = np.concatenate([f + rho * (CT @ g), rho * g])
-    x, its, converged = preconditioned_gmres(matvec, precondition, b, backend.rtol,
-                                             backend.maxiter)
-    backend.counted(its)
-    if not converged:
+    d0 = CT @ _rows_solve(backend, C, g)  # C d0 = g
+    f0 = f - K @ d0
+    b = np.concatenate([f0, np.zeros(m)])
+    x = backend.gmres(matvec, precondition, b)
+    if x is None:
         return None
-    d, lam = x[:N], -x[N:]
-    d = d + CT @ _rows_solve(backend, C, g - C @ d)
-    if not np.linalg.norm(f - K @ d + CT @ lam) <= backend.rtol * np.linalg.norm(b):
+    e, lam = x[:N], -x[N:]
+    d = d0 + e - CT @ _rows_solve(backend, C, C @ e)
+    if not np.linalg.norm(f - K @ d + CT @ lam) <= backend.rtol * np.linalg.norm(f0):
         return None
     return d, lam
 

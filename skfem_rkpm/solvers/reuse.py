@@ -11,9 +11,8 @@ s, GMRES on the next iteration's matrix preconditioned by the last LU 1.57 s
 ``inner`` (direct) backend; the next matrix ``A`` is not factored: each solve
 runs GMRES on ``A M⁻¹ y = b``, ``x = M⁻¹ y`` (right preconditioning, so that
 GMRES's residual is the true one, ``|b - A x|``).  When GMRES does not reach
-the relative residual ``rtol`` within as many iterations as cost one
-factorization (:meth:`Reusing.cap`, measured as the run goes), ``A`` is factored
-after all (a *fallback*, counted in ``stats``) and solved directly; that
+the relative residual ``rtol`` within ``maxiter`` iterations (40), ``A`` is
+factored after all (a *fallback*, counted in ``stats``) and solved directly; that
 factorization is the preconditioner of the next matrices.
 
 The tolerance follows the Newton tolerance (:meth:`Reusing.follow_newton`):
@@ -31,8 +30,6 @@ the whole saddle-point system replaces the GMRES on the multipliers with an
 exact ``K_ρ⁻¹`` inside (:func:`saddle_point`).
 """
 
-import time
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator, gmres, splu
@@ -40,24 +37,31 @@ from scipy.sparse.linalg import LinearOperator, gmres, splu
 from .backend import Solver, _canonical
 
 __all__ = ["Reusing", "reusing", "REUSE_MODES", "REUSE_LIMIT", "NEWTON_FRACTION",
-           "MAX_ITERATIONS", "MIN_ITERATIONS", "preconditioned_gmres", "saddle_point"]
+           "MAX_ITERATIONS", "preconditioned_gmres", "saddle_point"]
 
 #: ``reuse_factorization``: ``"off"`` (factor every matrix), ``"on"`` (reuse
 #: the last factorization at every size), ``"auto"`` (from :data:`REUSE_LIMIT`
 #: unknowns on)
 REUSE_MODES = ("off", "on", "auto")
 
-#: ``"auto"`` reuses the last factorization for matrices of at least this order
-REUSE_LIMIT = 20000
+#: ``"auto"`` reuses the last factorization for matrices of at least this
+#: order.  Measured on the billet (CPU, one core, load 7-10): at 802 (FEM,
+#: whole run) reuse costs 11.1 s against 8.2 s direct; at 5,476 (FEM, first 3
+#: steps) 406 against 594 ms per iteration, at 5,967 (RKPM, first 8 tangents)
+#: 4.8 against 5.9 s per tangent, at 42,075 (FEM, first 4 tangents) 21.1
+#: against 24.5 s per tangent (docs/forming_3d.md)
+REUSE_LIMIT = 5000
 
 #: the linear relative residual over the Newton tolerance
 NEWTON_FRACTION = 1e-3
 
-#: GMRES iterations of one reused solve before the matrix is factored: at
-#: most this many, and at most as many as cost one factorization (measured
-#: as the run goes), but at least ``MIN_ITERATIONS``
-MAX_ITERATIONS = 100
-MIN_ITERATIONS = 10
+#: GMRES iterations of one reused solve before the matrix is factored.
+#: Measured on the billet (CPU per iteration or tangent, load 8-11): RKPM at
+#: 5,967 unknowns, first 8 tangents, 4.8 s with a cap of 40 against 5.7 s
+#: with one of 100 (about a factorization's cost: 33 ms per GMRES iteration,
+#: 2.7 s per factorization); FEM at 5,967, first 3 steps, 406 ms with 40
+#: against 417 ms with 16 (half a factorization's cost)
+MAX_ITERATIONS = 40
 
 #: a reused solve that needs more than this fraction of its cap of GMRES
 #: iterations makes the next matrix factored (a fresh preconditioner)
@@ -108,7 +112,6 @@ class Reusing(Solver):
         self.stats = inner.stats
         self.stats.update(reused=0, gmres_iterations=0, fallbacks=0)
         self.iterations = []  # GMRES iterations of each reused solve
-        self._gmres_seconds = 0.0
 
     @property
     def spd_only(self):
@@ -144,24 +147,12 @@ class Reusing(Solver):
         """``M⁻¹ b`` with the kept factorization."""
         return self.inner.solve(b)
 
-    def cap(self):
-        """GMRES iterations allowed: as many as cost one factorization (the
-        mean CPU of this backend's factorizations over that of its GMRES
-        iterations so far), within ``MIN_ITERATIONS`` and ``maxiter``."""
-        factored, iterated = self.stats["factorizations"], self.stats["gmres_iterations"]
-        if not (factored and iterated and self._gmres_seconds > 0):
-            return self.maxiter
-        ratio = (self.stats["factor_seconds"] / factored) / (self._gmres_seconds / iterated)
-        return int(min(self.maxiter, max(MIN_ITERATIONS, ratio)))
-
     def gmres(self, matvec, precondition, b):
         """:func:`preconditioned_gmres` with this backend's tolerance and
-        :meth:`cap`, counted; more than ``REFRESH`` of the cap make the next
-        matrix factored.  Returns ``x`` or None when GMRES stalls."""
-        cap = self.cap()
-        clock = time.perf_counter()
+        ``maxiter``, counted; more than ``REFRESH`` of ``maxiter`` make the
+        next matrix factored.  Returns ``x`` or None when GMRES stalls."""
+        cap = self.maxiter
         x, its, converged = preconditioned_gmres(matvec, precondition, b, self.rtol, cap)
-        self._gmres_seconds += time.perf_counter() - clock
         self.iterations.append(its)
         self.stats["gmres_iterations"] += its
         self.refresh = its > REFRESH * cap
@@ -194,8 +185,7 @@ class Reusing(Solver):
 
     def describe(self):
         return (f"{self.inner.describe()}; the last factorization reused by GMRES "
-                f"(relative residual {self.rtol:.0e}, at most one factorization's worth of "
-                f"iterations)"
+                f"(relative residual {self.rtol:.0e}, at most {self.maxiter} iterations)"
                 + (f" from {self.min_size} unknowns on" if self.min_size else ""))
 
 

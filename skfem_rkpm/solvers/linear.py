@@ -525,7 +525,10 @@ class Auto(Solver):
         return self
 
     def _solve(self, b):
-        return self.current.solve(b)
+        try:
+            return self.current.solve(b)
+        except NotPositiveDefinite:  # a reused CHOLMOD's fallback factorization
+            return self.backend("superlu").factor(self.current.A).solve(b)
 
     @property
     def spd_only(self):

@@ -133,14 +133,21 @@ class Reusing(Solver):
             self.A, self.stale = A, True
             self.stats["reused"] += 1
             return self
-        self.inner.factor(A)
+        self._factor_inner(A)
         self.A, self.stale = A, False
         return self
+
+    def _factor_inner(self, A):
+        try:
+            self.inner.factor(A)
+        except BaseException:
+            self.inner.reset()  # no factorization of A to keep
+            raise
 
     def refactor(self):
         """Factor the kept matrix after all (GMRES stalled on it)."""
         self.stats["fallbacks"] += 1
-        self.inner.factor(self.A)
+        self._factor_inner(self.A)
         self.stale = self.refresh = False
 
     def precondition(self, b):

@@ -28,6 +28,10 @@ unknowns, the whole iteration and each part per call (one tangent, one
 factorization, one solid or contact evaluation); a factorization that ran
 out of memory is drawn as a lower bound (an open triangle).
 
+``--reuse on`` solves with the last factorization kept as the
+preconditioner of GMRES (``steps.reuse_factorization``); the row then has
+the reused matrices, GMRES iterations and fallbacks (``reuse``).
+
 One core: the thread variables are set before numpy is imported.
 
 Run:  python benchmarks/real_size.py --method fem --divisions 16 8 12 --steps 5 --json j.jsonl
@@ -107,13 +111,28 @@ def _watch_factors(backend, seen, patches):
     backend.Solver._factor_timed = factor
 
 
-def measure(method, divisions, steps=None, tangents=None):
+def _watch_reuse(patches, solvers):
+    """Keep in ``solvers`` the linear solver the run makes (for the counts of
+    its reused factorizations)."""
+    from skfem_rkpm.runs import runner
+    inner = runner._linear_solver
+
+    def made(sim):
+        solver = inner(sim)
+        solvers.append(solver)
+        return solver
+
+    patches.append((runner, "_linear_solver", inner))
+    runner._linear_solver = made
+
+
+def measure(method, divisions, steps=None, tangents=None, reuse="off"):
     """One case: a dict of the measured numbers (see the module docstring)."""
     from skfem_rkpm.runs import runner
     from skfem_rkpm.runs.scene import builtin_scenes, load_scene
 
     scene = load_scene(builtin_scenes()["billet_3d"], [
-        "output.fields=false", "output.figures=false",
+        "output.fields=false", "output.figures=false", f"steps.reuse_factorization={reuse}",
         f"geometry.divisions=[{','.join(str(int(n)) for n in divisions)}]"])
     load = os.getloadavg()[0]
     start = time.process_time()
@@ -129,6 +148,8 @@ def measure(method, divisions, steps=None, tangents=None):
     from skfem_rkpm.solvers import backend
     factored = {}
     _watch_factors(backend, factored, patches)
+    solvers = []
+    _watch_reuse(patches, solvers)
     if tangents:
         from skfem_rkpm.mechanics import problem
         _stop_at_tangent(problem, tangents, patches)
@@ -145,6 +166,11 @@ def measure(method, divisions, steps=None, tangents=None):
     row = _summary(method, divisions, unknowns, build, build_mb, load, clock, history,
                    steps, tangents)
     row["factored"], row["stopped"] = factored, stopped
+    row["reuse_factorization"] = reuse
+    row["reuse"] = getattr(solvers[0], "reuse_stats", None) if solvers else None
+    row["residuals"] = [r.residuals for r in history]
+    row["gmres_per_solve"] = [b.iterations for b in getattr(solvers[0], "_backends", {}).values()
+                              if hasattr(b, "refactor")] if solvers else []
     return row
 
 
@@ -232,13 +258,16 @@ def main():
     parser.add_argument("--tangents", type=int, default=None,
                         help="stop before this many + 1 tangents are formed; the parts are "
                              "then per tangent, not per iteration")
+    parser.add_argument("--reuse", choices=("off", "on", "auto"), default="off",
+                        help="steps.reuse_factorization: GMRES preconditioned by the last "
+                             "factorization (default off: every tangent factored)")
     parser.add_argument("--json", type=Path, default=None, help="append the case here")
     parser.add_argument("--from-json", type=Path, default=None,
                         help="no run: draw the cases of this file")
     parser.add_argument("--figure", type=Path, default=None)
     args = parser.parse_args()
     if args.from_json is None:
-        row = measure(args.method, args.divisions, args.steps, args.tangents)
+        row = measure(args.method, args.divisions, args.steps, args.tangents, args.reuse)
         print(json.dumps(row, indent=1), flush=True)
         if args.json is not None:
             with open(args.json, "a", encoding="utf-8") as out:

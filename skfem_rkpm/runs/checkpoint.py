@@ -31,7 +31,7 @@ NAME = "checkpoint.npz"
 FORMAT = 1
 #: scene keys that may change between a run and its resumption: they change
 #: neither the model nor the steps (the linear solver only the round-off)
-MAY_CHANGE = ("steps.solver", "output.figures")
+MAY_CHANGE = ("steps.solver", "steps.reuse_factorization", "output.figures")
 
 
 class CheckpointError(ValueError):

@@ -127,7 +127,7 @@ def run_implicit(sim, out=None, progress=True, resume=False, overwrite=False, lo
     duration = dynamics["duration"]
     interval = dynamics["output_interval"] or duration / 10
     count = implicit_steps(sim.scene)
-    solver = make_solver(steps["solver"])
+    solver = make_solver(steps["solver"], reuse_factorization=steps["reuse_factorization"])
     scheme = implicit_scheme(sim)
     probes = _point_probes(sim.basis, sim.points)
     records, rows = [], []

@@ -444,7 +444,7 @@ def _linear_solver(sim):
         return DistributedLU(sim.partition, sim.problem.reduction)
     if name in DISTRIBUTED:
         return make_solver(name, points=sim.basis.doflocs)
-    return make_solver(name)
+    return make_solver(name, reuse_factorization=sim.scene["steps"]["reuse_factorization"])
 
 
 @contextlib.contextmanager

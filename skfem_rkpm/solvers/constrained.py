@@ -26,6 +26,7 @@ from ..approximation.constraints import transformation
 from .backend import _canonical
 from .linear import Auto, DenseLU, NotPositiveDefinite, SuperLU, make_solver
 from .nullspace import for_rows
+from .reuse import Reusing, saddle_point as _reused_saddle_point
 
 __all__ = ["solve", "solve_constrained", "linear_solve", "solve_saddle_point"]
 
@@ -188,7 +189,8 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
         if name == "superlu" and solver.choose(K, spd=True) == "cholmod":
             name = "cholmod"  # CHOLMOD on K + ρCᵀC beats SuperLU on the KKT matrix
         backend = solver.backend(name)
-    if backend.spd_only or isinstance(backend, SuperLU):
+    direct = backend.inner if isinstance(backend, Reusing) else backend
+    if backend.spd_only or isinstance(direct, SuperLU):
         rho = _penalty(K, C)
         Krho = _canonical(K + rho * (C.T @ C))
         solution = _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol,
@@ -197,8 +199,11 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
             solver.system = "K + ρCᵀC (constraints by the augmented Lagrangian)"
             return solution
         backend = solver.backend("superlu") if isinstance(solver, Auto) else backend
-    A = _saddle_matrix(K, C, dense=isinstance(backend, DenseLU))
-    backend.factor(A)
+    A = _saddle_matrix(K, C, dense=isinstance(direct, DenseLU))
+    if isinstance(backend, Reusing):  # GMRES would not keep C d = g to round-off
+        backend.factor(A, reuse=False)
+    else:
+        backend.factor(A)
     solver.A = A
     solver.system = "the saddle-point matrix [[K, Cᵀ], [C, 0]]"
     sol = backend.solve(np.concatenate([f, g]))
@@ -259,6 +264,16 @@ def _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol, maxiter)
                                          rho, f, C, g, rtol, maxiter)
         return None
     solver.A = Krho
+    if getattr(backend, "stale", False):  # the last factorization of an earlier K_ρ
+        solution = _reused(backend, K, rho, f, C, g)
+        if solution is not None:
+            return solution
+        try:
+            backend.refactor()
+        except (NotPositiveDefinite, RuntimeError):
+            if explicit:
+                raise
+            return None
     columns = [(f, g)] if f.ndim == 1 else [(f[:, j], g[:, j]) for j in range(f.shape[1])]
     pairs = []
     for fj, gj in columns:
@@ -278,6 +293,18 @@ def _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol, maxiter)
 #: (SuperLU's direct solves of the saddle point of the 3D scenes leave 2e-14
 #: to 2e-8; its own check accepts a residual of 1e-10 |b|)
 ACCEPTED_BACKWARD_ERROR = 1e-10
+
+
+def _reused(backend, K, rho, f, C, g):
+    """:func:`skfem_rkpm.solvers.reuse.saddle_point` for each column of ``f``
+    and ``g``, or None when GMRES stalls on one of them."""
+    if f.ndim == 1:
+        return _reused_saddle_point(backend, K, rho, f, C, g)
+    pairs = [_reused_saddle_point(backend, K, rho, f[:, j], C, g[:, j])
+             for j in range(f.shape[1])]
+    if any(p is None for p in pairs):
+        return None
+    return (np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs]))
 
 
 def _refined_solve(solve, K, rho, f, C, g, rtol, maxiter, refinements=3):

@@ -71,6 +71,7 @@ from scipy.sparse.linalg import splu
 from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_backend,
                       _refine, available, is_symmetric)
 from .petsc import PETScGAMG, PETScLU
+from .reuse import REUSE_MODES, reusing
 
 __all__ = ["make_solver", "available", "Solver", "BackendUnavailable",
            "is_symmetric", "DENSE_LIMIT", "DENSE_FRACTION", "DENSE_SIZE", "ND_LIMIT",
@@ -469,13 +470,21 @@ class Auto(Solver):
     the problem; ask for it by name.  Nor is UMFPACK: it is no faster than
     SuperLU with nested dissection on the RK tangents measured, and it did
     not factor the 1e5-particle one in 300 s (docs/benchmarks/linear_solvers.md).  Backends are kept between calls so
-    that each reuses its analysis.
+    that each reuses its analysis.  ``reuse_factorization`` (``"off"``,
+    ``"on"``, ``"auto"``) makes the sparse direct ones keep their last
+    factorization as the preconditioner of GMRES on the next matrices
+    (:mod:`skfem_rkpm.solvers.reuse`).
     """
 
     name = "auto"
 
-    def __init__(self, symmetric=None, **options):
+    def __init__(self, symmetric=None, reuse_factorization="off", **options):
         super().__init__(symmetric, **options)
+        if reuse_factorization not in REUSE_MODES:
+            raise ValueError(f"reuse_factorization must be one of {', '.join(REUSE_MODES)}, "
+                             f"not {reuse_factorization!r}")
+        self.reuse = reuse_factorization
+        self.newton_tol = None
         self._backends = {}
         self.current = None
         self.installed = available()
@@ -497,7 +506,10 @@ class Auto(Solver):
     def backend(self, name):
         """The kept instance of backend ``name``; it becomes the current one."""
         if name not in self._backends:
-            self._backends[name] = _CLASSES[name](self.symmetric, **self.options)
+            backend = reusing(_CLASSES[name](self.symmetric, **self.options), self.reuse, name)
+            if self.newton_tol is not None and hasattr(backend, "follow_newton"):
+                backend.follow_newton(self.newton_tol)
+            self._backends[name] = backend
         self.current = self._backends[name]
         return self.current
 
@@ -513,11 +525,27 @@ class Auto(Solver):
         return self
 
     def _solve(self, b):
-        return self.current.solve(b)
+        try:
+            return self.current.solve(b)
+        except NotPositiveDefinite:  # a reused CHOLMOD's fallback factorization
+            return self.backend("superlu").factor(self.current.A).solve(b)
 
     @property
     def spd_only(self):
         return self.current is not None and self.current.spd_only
+
+    def follow_newton(self, tol):
+        """Tie the tolerance of the reused factorizations to the Newton tolerance."""
+        self.newton_tol = tol
+        for backend in self._backends.values():
+            if hasattr(backend, "follow_newton"):
+                backend.follow_newton(tol)
+
+    @property
+    def reuse_stats(self):
+        """Reused matrices, GMRES iterations and fallbacks, over all backends."""
+        keys = ("reused", "gmres_iterations", "fallbacks", "factorizations")
+        return {k: sum(b.stats.get(k, 0) for b in self._backends.values()) for k in keys}
 
     def describe(self):
         if self.current is None:
@@ -525,7 +553,7 @@ class Auto(Solver):
         return f"auto: {self.current.describe()}"
 
 
-def make_solver(name="auto", symmetric=None, **options):
+def make_solver(name="auto", symmetric=None, reuse_factorization="off", **options):
     """A :class:`Solver` by name.
 
     Parameters
@@ -539,6 +567,13 @@ def make_solver(name="auto", symmetric=None, **options):
         What the caller knows of the matrices to come: ``False`` for
         frictional contact tangents, ``True`` for symmetric ones; ``None``
         lets ``auto`` check when it matters.
+    reuse_factorization : {"off", "on", "auto"}
+        Keep the last factorization and solve the next matrices by GMRES
+        preconditioned by it, factoring again only when GMRES stalls
+        (:mod:`skfem_rkpm.solvers.reuse`); ``"auto"`` from
+        :data:`~skfem_rkpm.solvers.reuse.REUSE_LIMIT` unknowns on.  Sparse
+        direct backends only (``superlu``, ``pardiso``, ``umfpack``,
+        ``cholmod``, and those ``auto`` picks).
     **options
         Backend options (``amg``: ``rtol``, ``maxiter``, ``near_nullspace``;
         ``petsc``, ``petsc-gamg``: ``points``, the dof locations used to
@@ -555,7 +590,7 @@ def make_solver(name="auto", symmetric=None, **options):
         return name
     name = "auto" if name is None else str(name).lower()
     if name == "auto":
-        return Auto(symmetric, **options)
+        return Auto(symmetric, reuse_factorization, **options)
     if name not in _CLASSES:
         raise ValueError(f"unknown linear solver {name!r}; choose one of "
                          f"auto, {', '.join(_CLASSES)}")
@@ -563,4 +598,4 @@ def make_solver(name="auto", symmetric=None, **options):
         raise ValueError(f"the linear solver {name!r} needs symmetric positive definite "
                          f"matrices, and these are declared non-symmetric; use "
                          f"'superlu', 'pardiso' or 'auto'")
-    return _CLASSES[name](symmetric, **options)
+    return reusing(_CLASSES[name](symmetric, **options), reuse_factorization, name)

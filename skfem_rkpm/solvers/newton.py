@@ -268,6 +268,8 @@ def newton_steps(problem, prescribed=(), load=None, steps=10, tol=1e-6,
     C = rows.C  # shared corners: dependent rows removed
     reactions_fit = _Reactions(C)
     linear_solver = make_solver(linear_solver)
+    if hasattr(linear_solver, "follow_newton"):  # a reused factorization's GMRES
+        linear_solver.follow_newton(tol)
     increment = Quasistatic() if increment is None else increment
     described = None
     if control is None:

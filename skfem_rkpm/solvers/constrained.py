@@ -166,20 +166,23 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     :class:`~skfem_rkpm.solvers.partitioned.PartialMatrix`) go to the
     saddle-point solve of their own.
     """
+    solver.factored = None  # set below where the factors can solve again
     if getattr(K, "partial", False):  # the ranks' shares of a partitioned tangent
         return K.solve_saddle_point(solver, f, C, g)
     N = K.shape[0]
-    K = _canonical(K)
+    given, K = K, _canonical(K)
     m = C.shape[0]
     if m == 0:
         _factor(solver, K, spd=True)
         solver.system = "K"
-        return solver.solve(f), np.zeros((0,) + np.shape(f)[1:])
+        solver.factored = Factored(given, C, K, solver, None)
+        return solver.factored.solve(f, g)
     f = np.asarray(f, dtype=float)
     g = np.asarray(g, dtype=float)
     if isinstance(solver, Auto):
         solution = _eliminated(solver, K, f, C, g)
         if solution is not None:
+            solver.factored = Factored(given, C, K, solver, solver.null_space)
             return solution
     C = sp.csr_matrix(C)
     backend = solver
@@ -227,9 +230,41 @@ def _eliminated(solver, K, f, C, g):
         solver.factor(reduced, spd=True)
     solver.A = reduced
     solver.system = "Zᵀ K Z (constraints eliminated by a null-space basis)"
+    return _eliminated_solve(solver, elimination, K, f, d0)
+
+
+def _eliminated_solve(solver, elimination, K, f, d0):
+    """``d, λ`` from the factored ``Zᵀ K Z`` and the particular ``d₀``."""
     z = solver.solve(elimination.reduced_load(K, f, d0))
     d = elimination.expand(z, d0)
     return d, elimination.multipliers((K @ d - f)[elimination.D])
+
+
+class Factored:
+    """The system that :func:`solve_saddle_point` factored last with a
+    solver (``solver.factored``), where its factors solve it again for new
+    right-hand sides: ``K`` without conditions, or with the conditions
+    eliminated by a null-space basis.  ``K`` and ``C`` are the objects
+    given (:func:`~skfem_rkpm.solvers.low_rank.solve_updated` recognizes
+    the system by them); the other paths leave ``solver.factored`` None."""
+
+    def __init__(self, K, C, canonical, solver, elimination):
+        self.K, self.C, self.canonical = K, C, canonical
+        self.solver, self.elimination = solver, elimination
+        self.A = solver.A  # the matrix factored: another factorization replaces it
+
+    def holds(self, K, C):
+        """Whether the solver's factors are still those of ``K`` and ``C``."""
+        return self.K is K and self.C is C and self.solver.A is self.A
+
+    def solve(self, f, g):
+        """``d, λ`` of ``K d = f + Cᵀ λ``, ``C d = g`` (``f``, ``g`` 1-D or
+        with a column per right-hand side), without factoring again."""
+        f, g = np.asarray(f, dtype=float), np.asarray(g, dtype=float)
+        if self.elimination is None:
+            return self.solver.solve(f), np.zeros((0,) + f.shape[1:])
+        return _eliminated_solve(self.solver, self.elimination, self.canonical, f,
+                                 self.elimination.particular(g))
 
 
 def _saddle_matrix(K, C, dense=False):

@@ -17,6 +17,8 @@ nodal values directly.  The rows ``C`` come from
 :mod:`skfem_rkpm.approximation.constraints`.
 """
 
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -246,16 +248,24 @@ class Factored:
     right-hand sides: ``K`` without conditions, or with the conditions
     eliminated by a null-space basis.  ``K`` and ``C`` are the objects
     given (:func:`~skfem_rkpm.solvers.low_rank.solve_updated` recognizes
-    the system by them); the other paths leave ``solver.factored`` None."""
+    the system by them; ``K`` is referenced weakly); the other paths leave
+    ``solver.factored`` None."""
 
     def __init__(self, K, C, canonical, solver, elimination):
-        self.K, self.C, self.canonical = K, C, canonical
-        self.solver, self.elimination = solver, elimination
+        # K only by weak reference: a tangent is not kept alive for this
+        self._K, self._canonical = weakref.ref(K), weakref.ref(canonical)
+        self._copy = None if canonical is K else canonical  # lives only here
+        self.C, self.solver, self.elimination = C, solver, elimination
         self.A = solver.A  # the matrix factored: another factorization replaces it
+
+    @property
+    def canonical(self):
+        """``K`` in canonical CSR form."""
+        return self._canonical()
 
     def holds(self, K, C):
         """Whether the solver's factors are still those of ``K`` and ``C``."""
-        return self.K is K and self.C is C and self.solver.A is self.A
+        return self._K() is K and self.C is C and self.solver.A is self.A
 
     def solve(self, f, g):
         """``d, λ`` of ``K d = f + Cᵀ λ``, ``C d = g`` (``f``, ``g`` 1-D or

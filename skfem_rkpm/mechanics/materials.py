@@ -204,6 +204,7 @@ class ReturnPoint:
     dgamma: np.ndarray
     q_trial: np.ndarray
     H: np.ndarray
+    tau_p: np.ndarray
 
 
 def _spectral(b):
@@ -232,6 +233,32 @@ def _spectral(b):
     vec[:, 1, 0], vec[:, 0, 1] = s, -s
     vec[:, 2, 2] = 1.0
     return lam, vec
+
+
+#: flat places in the 9 x 9 principal matrix (rows and columns (A, B) as 3 A + B)
+#: of the normal block (A A), (C C), the shear pairs (a b), (b a) and the
+#: diagonal (A A), (A A)
+_NORMAL = (4 * 9 * np.arange(3)[:, None] + 4 * np.arange(3)[None, :]).ravel()
+_AB, _BA = 3 * _PAIR_A + _PAIR_B, 3 * _PAIR_B + _PAIR_A
+_DIAGONAL = 40 * np.arange(3)
+
+
+def _principal_matrix(D, g, tau_p):
+    """``Ŝ - T`` (n, 9, 9) of :meth:`J2Material._tangent`: ``D_AC`` at
+    ``(A A), (C C)``; for each shear pair ``a < b``, ``g_ab`` in the columns
+    ``(a b)`` and ``g_ba`` in the columns ``(b a)`` of the rows ``(a b)``
+    and ``(b a)`` (the blocks ``(Z_ab + Z_ba)(g_ab Z_ab + g_ba Z_ba)ᵀ``);
+    minus ``τ_A`` at ``(A B), (B A)``."""
+    n = D.shape[0]
+    S = np.zeros((n, 81))
+    S[:, _NORMAL] = D.reshape(n, 9)
+    g_ab, g_ba = g[:, _PAIR_A, _PAIR_B], g[:, _PAIR_B, _PAIR_A]
+    S[:, 9 * _AB + _AB] = g_ab
+    S[:, 9 * _BA + _AB] = g_ab - tau_p[:, _PAIR_B]
+    S[:, 9 * _AB + _BA] = g_ba - tau_p[:, _PAIR_A]
+    S[:, 9 * _BA + _BA] = g_ba
+    S[:, _DIAGONAL] -= tau_p
+    return S.reshape(n, 9, 9)
 
 
 def _log_divided_differences(lam):
@@ -396,48 +423,31 @@ class J2Material:
         g[:, [0, 1, 2], [0, 1, 2]] = 0.0
         return D, g
 
-    def _tangent(self, vec, Finv, P, D, g, entries):
+    def _tangent(self, vec, Finv, tau_p, D, g, entries):
         """``A_iJkL = ∂P_iJ/∂F_kL`` at the ``entries`` (i, J), shape (n, m, m).
 
         ``A = ½ (D : L : B)_ijkl F⁻¹_Jj F⁻¹_Ll - τ_il F⁻¹_Jk F⁻¹_Ll`` evaluated
         in the principal frame: with ``Q`` the eigenvectors (columns) and
         ``W = F⁻¹ Q``, ``Z_(iJ),(AB) = Q_iA W_JB`` maps principal components
-        to ``(i, J)`` and ``A = Z Ŝ Zᵀ - P_iL F⁻¹_Jk``, ``Ŝ`` the principal
-        tangent of :meth:`_principal_tangent`.  ``Ŝ`` couples the normal
-        components through ``D`` and each shear pair ``A < B`` only with
-        itself, so ``Z Ŝ Zᵀ = X Yᵀ`` with six columns,
-        ``X = [Z_AA D, Z_AB + Z_BA]`` and ``Y = [Z_AA, g_AB Z_AB + g_BA Z_BA]``.
+        to ``(i, J)`` and ``A = Z (Ŝ - T) Zᵀ``, with ``Ŝ`` the principal
+        tangent of :meth:`_principal_tangent` and ``T`` the geometric term:
+        ``P_iL F⁻¹_Jk = Σ_AB Z_(iJ),(AB) τ_A Z_(kL),(BA)`` since
+        ``P = Q τ_p Wᵀ`` and ``F⁻¹ = W Qᵀ`` (``Q`` orthonormal), so
+        ``T_(AB),(BA) = τ_A``.  ``Ŝ - T`` has 27 of its 81 entries nonzero
+        (:func:`_principal_matrix`); two batched 9 x 9 products per point
+        replace the broadcasts of the outer products (measured on 1536
+        points: 1.1 against 2.6 ms; the same sums to round-off).
         """
         rows = np.array([i for i, _ in entries])
         cols = np.array([J for _, J in entries])
         W = Finv @ vec
         n, m = vec.shape[0], len(entries)
-        a, b = _PAIR_A, _PAIR_B
         if m == 9 and np.array_equal(rows, _ALL_ROWS) and np.array_equal(cols, _ALL_COLS):
-            # all nine entries, row-major (3D): Z by broadcasting, no gathers,
-            # X and Y transposed in memory order (measured: 2.7 against 3.6 ms
-            # for 1536 points; bitwise the same)
-            Zd = (vec[:, :, None, :] * W[:, None, :, :]).reshape(n, 9, 3)
-            Zab = (vec[:, :, None, a] * W[:, None, :, b]).reshape(n, 9, 3)
-            Zba = (vec[:, :, None, b] * W[:, None, :, a]).reshape(n, 9, 3)
-            X = np.concatenate([Zd @ D, Zab + Zba], axis=2)
-            Yt = np.concatenate([Zd, g[:, None, a, b] * Zab + g[:, None, b, a] * Zba], axis=2)
-            A = X @ Yt.transpose(0, 2, 1)
-            A -= (P[:, :, None, None, :] * Finv[:, None, :, :, None]).reshape(n, 9, 9)
-            return A
-        Q, WJ = vec[:, rows], W[:, cols]  # Q_iA and W_JB at the entries, (n, m, 3)
-        Zd = Q * WJ
-        Zab, Zba = Q[:, :, a] * WJ[:, :, b], Q[:, :, b] * WJ[:, :, a]
-        X, Y = np.empty((n, m, 6)), np.empty((n, 6, m))
-        np.matmul(Zd, D, out=X[:, :, :3])
-        np.add(Zab, Zba, out=X[:, :, 3:])
-        Y[:, :3] = Zd.transpose(0, 2, 1)
-        Y[:, 3:] = (g[:, None, a, b] * Zab + g[:, None, b, a] * Zba).transpose(0, 2, 1)
-        A = X @ Y
-        # P_iL F⁻¹_Jk at (iJ, kL): flat entries 3 i + L of P and 3 J + k of F⁻¹
-        A -= (np.take(P.reshape(n, 9), 3 * rows[:, None] + cols[None, :], axis=1)
-              * np.take(Finv.reshape(n, 9), 3 * cols[:, None] + rows[None, :], axis=1))
-        return A
+            # all nine entries, row-major (3D): Z by broadcasting, no gathers
+            Z = (vec[:, :, None, :, None] * W[:, None, :, None, :]).reshape(n, 9, 9)
+        else:
+            Z = (vec[:, rows, :, None] * W[:, cols, None, :]).reshape(n, m, 9)
+        return (Z @ _principal_matrix(D, g, tau_p)) @ Z.transpose(0, 2, 1)
 
     # -- finite strain ----------------------------------------------------------
     def update(self, F, state, tangent=True, entries=None):
@@ -492,7 +502,7 @@ class J2Material:
         new_state = MaterialState(0.5 * (Cp_inv + Cp_inv.transpose(0, 2, 1)), alpha)
         P = tau @ Finv.transpose(0, 2, 1)
         return P, tau, new_state, ReturnPoint(Finv, P, lam, vec, eps_trial, dgamma,
-                                              q_trial, H)
+                                              q_trial, H, tau_p)
 
     def tangent(self, point, entries=None):
         """Consistent tangent ``A = ∂P/∂F`` at a :class:`ReturnPoint` of
@@ -506,5 +516,5 @@ class J2Material:
         full = entries is None
         if full:
             entries = [(i, J) for i in range(3) for J in range(3)]
-        A = self._tangent(point.vec, point.Finv, point.P, D, g, entries)
+        A = self._tangent(point.vec, point.Finv, point.tau_p, D, g, entries)
         return A.reshape(-1, 3, 3, 3, 3) if full else A

@@ -241,9 +241,12 @@ class SolidProblem:
             FinvT = self._at_entries(Finv.transpose(0, 2, 1))
             Pbar_at = self._at_entries(Pbar)
             AF = (A @ self._at_entries(FM)[:, :, None])[:, :, 0]
-            A_hat = ((gamma * s)[:, None, None] * (A - AF[:, :, None] * FinvT[:, None, :] / n)
-                     + ((1.0 - 1.0 / n) * gamma)[:, None, None]
-                     * Pbar_at[:, :, None] * FinvT[:, None, :])
+            # Â = γ s A + [(1 - 1/n) γ P̄ - (γ s / n) A:F_M] ⊗ F⁻ᵀ, in place of A
+            u = (((1.0 - 1.0 / n) * gamma)[:, None] * Pbar_at
+                 - (gamma * s / n)[:, None] * AF)
+            A_hat = A
+            A_hat *= (gamma * s)[:, None, None]
+            A_hat += u[:, :, None] * FinvT[:, None, :]
             dP_dJbar = (gamma / Jbar)[:, None] * ((s / n)[:, None] * AF
                                                   - (1.0 - 1.0 / n) * Pbar_at)
             _, A_ext = from_entries(P_at, A_hat, self.model, self.shape)

@@ -22,7 +22,6 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-from skfem.io.meshio import HEX_MAPPING
 
 from ..solvers.newton import StepRecord
 from .folder import FolderError, atomic_path, open_append, write_atomic
@@ -41,6 +40,8 @@ def xdmf_cells(mesh):
     """The cells of ``mesh`` (ncells, vertices) in XDMF's (VTK's) vertex
     order: scikit-fem numbers the vertices of a hexahedron otherwise."""
     if type(mesh).__name__ == "MeshHex1":
+        from skfem.io.meshio import HEX_MAPPING  # meshio: 0.15 s to import
+
         return mesh.t[HEX_MAPPING[:8]].T
     return mesh.t.T
 

@@ -17,6 +17,8 @@ nodal values directly.  The rows ``C`` come from
 :mod:`skfem_rkpm.approximation.constraints`.
 """
 
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -167,20 +169,23 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     :class:`~skfem_rkpm.solvers.partitioned.PartialMatrix`) go to the
     saddle-point solve of their own.
     """
+    solver.factored = None  # set below where the factors can solve again
     if getattr(K, "partial", False):  # the ranks' shares of a partitioned tangent
         return K.solve_saddle_point(solver, f, C, g)
     N = K.shape[0]
-    K = _canonical(K)
+    given, K = K, _canonical(K)
     m = C.shape[0]
     if m == 0:
         _factor(solver, K, spd=True)
         solver.system = "K"
-        return solver.solve(f), np.zeros((0,) + np.shape(f)[1:])
+        solver.factored = Factored(given, C, K, solver, None)
+        return solver.factored.solve(f, g)
     f = np.asarray(f, dtype=float)
     g = np.asarray(g, dtype=float)
     if isinstance(solver, Auto):
         solution = _eliminated(solver, K, f, C, g)
         if solution is not None:
+            solver.factored = Factored(given, C, K, solver, solver.null_space)
             return solution
     C = sp.csr_matrix(C)
     backend = solver
@@ -232,9 +237,49 @@ def _eliminated(solver, K, f, C, g):
         solver.factor(reduced, spd=True)
     solver.A = reduced
     solver.system = "Zᵀ K Z (constraints eliminated by a null-space basis)"
+    return _eliminated_solve(solver, elimination, K, f, d0)
+
+
+def _eliminated_solve(solver, elimination, K, f, d0):
+    """``d, λ`` from the factored ``Zᵀ K Z`` and the particular ``d₀``."""
     z = solver.solve(elimination.reduced_load(K, f, d0))
     d = elimination.expand(z, d0)
     return d, elimination.multipliers((K @ d - f)[elimination.D])
+
+
+class Factored:
+    """The system that :func:`solve_saddle_point` factored last with a
+    solver (``solver.factored``), where its factors solve it again for new
+    right-hand sides: ``K`` without conditions, or with the conditions
+    eliminated by a null-space basis.  ``K`` and ``C`` are the objects
+    given (:func:`~skfem_rkpm.solvers.low_rank.solve_updated` recognizes
+    the system by them; ``K`` is referenced weakly); the other paths leave
+    ``solver.factored`` None."""
+
+    def __init__(self, K, C, canonical, solver, elimination):
+        # K only by weak reference: a tangent is not kept alive for this
+        self._K, self._canonical = weakref.ref(K), weakref.ref(canonical)
+        self._copy = None if canonical is K else canonical  # lives only here
+        self.C, self.solver, self.elimination = C, solver, elimination
+        self.A = solver.A  # the matrix factored: another factorization replaces it
+
+    @property
+    def canonical(self):
+        """``K`` in canonical CSR form."""
+        return self._canonical()
+
+    def holds(self, K, C):
+        """Whether the solver's factors are still those of ``K`` and ``C``."""
+        return self._K() is K and self.C is C and self.solver.A is self.A
+
+    def solve(self, f, g):
+        """``d, λ`` of ``K d = f + Cᵀ λ``, ``C d = g`` (``f``, ``g`` 1-D or
+        with a column per right-hand side), without factoring again."""
+        f, g = np.asarray(f, dtype=float), np.asarray(g, dtype=float)
+        if self.elimination is None:
+            return self.solver.solve(f), np.zeros((0,) + f.shape[1:])
+        return _eliminated_solve(self.solver, self.elimination, self.canonical, f,
+                                 self.elimination.particular(g))
 
 
 def _saddle_matrix(K, C, dense=False):

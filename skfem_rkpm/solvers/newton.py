@@ -22,6 +22,7 @@ from scipy.sparse.linalg import splu
 from ..approximation.constraints import ConstraintSet, nodal_constraint, weak_constraint
 from .constrained import solve_constrained
 from .linear import make_solver
+from .low_rank import solve_updated
 from .step_control import StepControl
 from .time_integration import Quasistatic
 from ..mechanics.problem import InvertedElementError, NonFiniteError
@@ -517,9 +518,10 @@ def _update(K, r, C, gap, linear_solver, contributions, weight=1.0, rounds=4):
         if not found or key == previous:
             break
         previous = key
-        K_touch = K + sum(x[2] for x in found)
         r_touch = r - sum(x[1] for x in found)
-        delta, _ = solve_constrained(K_touch, r_touch, C, gap, solver=linear_solver)
+        # K's factors with the few rows the found nodes change (low_rank)
+        delta, _ = solve_updated(K, sum(x[2] for x in found), r_touch, C, gap,
+                                 linear_solver)
     return delta
 
 

@@ -23,6 +23,9 @@ __all__ = ["DIMENSIONS", "model_dimension", "check_geometry", "check_components"
 #: the dimension of each kind of geometry (a gmsh file: that of its cells)
 DIMENSIONS = {"rectangle": 2, "annulus": 2, "box": 3, "ring_sector": 3, "quarter_cylinder": 3}
 
+#: what the divisions of a kind count, where not cells along x, y (and z)
+DIVISIONS = {"quarter_cylinder": "[core, core to mantle, along z]"}
+
 #: the cell types of each dimension, the default first
 CELLS = {2: ("quad", "tri"), 3: ("hex", "tet")}
 
@@ -71,8 +74,8 @@ def check_geometry(scene, fail):
         fail("geometry.cells", f"a {kind} has {' or '.join(CELLS[dim])} cells, "
                                f"not {geometry['cells']!r}")
     if len(geometry["divisions"]) != dim:
-        fail("geometry.divisions", f"a {kind} needs {dim} values "
-                                   + ("[nx, ny, nz]" if dim == 3 else "[nx, ny]"))
+        fail("geometry.divisions", f"a {kind} needs {dim} values " + DIVISIONS.get(
+            kind, "[nx, ny, nz]" if dim == 3 else "[nx, ny]"))
     if kind == "quarter_cylinder" and geometry["cells"] != "hex":
         fail("geometry.cells", "a quarter_cylinder has hex cells only")
     if kind == "ring_sector":

@@ -13,6 +13,7 @@ The functions live in
 * :mod:`.structured`: rectangles (uniform, perturbed, graded, piecewise)
   and boxes;
 * :mod:`.rings`: rings and ring sectors in polar cells;
+* :mod:`.cylinders`: a quarter cylinder in mapped hexahedra;
 * :mod:`.gmsh`: unstructured meshes from gmsh, ``.msh`` and ``.geo`` files
   (a ``.geo`` script is first checked by :mod:`.geo_check`);
 * :mod:`.queries`: the particles, the spacing at each vertex and the normal
@@ -22,6 +23,7 @@ and are all importable from here.  Nothing in this folder imports another
 folder of the package.
 """
 
+from .cylinders import quarter_cylinder, quarter_disk
 from .gmsh import from_gmsh, gmsh_plate_with_hole, gmsh_rectangle, load
 from .queries import local_spacing, mesh_vertices, plane_normal
 from .rings import annulus, ring_sector
@@ -34,6 +36,8 @@ __all__ = [
     "box",
     "annulus",
     "ring_sector",
+    "quarter_disk",
+    "quarter_cylinder",
     "gmsh_rectangle",
     "gmsh_plate_with_hole",
     "from_gmsh",

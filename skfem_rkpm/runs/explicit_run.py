@@ -296,7 +296,8 @@ def summary(result):
 
 
 def save_explicit_figures(sim, result, out, folder=None):
-    """``deformed.png`` (the last state coloured by ε̄ᵖ), ``energy.png`` (the
+    """``deformed.png`` (the last state coloured by ε̄ᵖ; in 3D its surface,
+    and ``section.png``), ``energy.png`` (the
     energies against time) and, with tools, ``forces.png`` (their forces
     against time), each written atomically."""
     import matplotlib
@@ -316,6 +317,10 @@ def save_explicit_figures(sim, result, out, folder=None):
         art = plot_deformed(ax, sim.problem, result.d, title, scene=sim.scene)
         fig.colorbar(art, ax=ax, label="equivalent plastic strain")
         figures["deformed.png"] = fig
+    else:  # the deformed surface and a section, coloured by ε̄ᵖ
+        from .plot3d import figures_3d
+
+        figures.update(figures_3d(sim, result, title))
     t = np.array([r["time"] for r in result.rows]) * 1e6
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for key in ("kinetic", "internal", "contact", "external work", "balance error"):

@@ -51,15 +51,16 @@ SCHEMA = {
     },
     "geometry": {
         "kind": Key("str", "rectangle", choices=("rectangle", "annulus", "box", "ring_sector",
-                                                 "gmsh"),
+                                                 "quarter_cylinder", "gmsh"),
                     doc="rectangle section with divisions, ring or ring sector (annulus), "
-                        "3D box, or a gmsh .geo/.msh file (2D or 3D)"),
+                        "3D box, quarter cylinder, or a gmsh .geo/.msh file (2D or 3D)"),
         "x": Key("list[float]", check=_increasing_pair, doc="rectangle: [xmin, xmax]"),
         "y": Key("list[float]", check=_increasing_pair, doc="rectangle: [ymin, ymax]"),
         "divisions": Key("list[int]", check=_cell_counts,
                          doc="rectangle: cells [nx, ny]; particles are the (nx+1)(ny+1) "
                              "vertices; annulus: cells [across the wall, around]; box: "
-                             "cells [nx, ny, nz]; ring_sector: [across, around, height]"),
+                             "cells [nx, ny, nz]; ring_sector: [across, around, height]; "
+                             "quarter_cylinder: [core, core to mantle, along z]"),
         "cells": Key("str", choices=("quad", "tri", "hex", "tet"),
                      doc="cell type; rectangle, annulus: quad (default) or tri; box: hex "
                          "(default) or tet"),
@@ -75,10 +76,14 @@ SCHEMA = {
                           "ring_sector (3D, hexahedra): [0, angle], boundaries start (y = 0), "
                           "end, bottom (z = 0) and top (z = lz)"),
         "center": Key("list[float]", [0.0, 0.0], check=_pair, doc="annulus: center"),
+        "radius": Key("float", check=_positive,
+                      doc="quarter_cylinder (3D, hexahedra): radius of x, y >= 0, r <= radius, "
+                          "0 <= z <= lz; boundaries xmin (x = 0), ymin (y = 0), outer, "
+                          "bottom (z = 0), top (z = lz)"),
         "lx": Key("float", check=_positive, doc="box: edge length along x"),
         "ly": Key("float", check=_positive, doc="box: edge length along y"),
-        "lz": Key("float", check=_positive, doc="box: edge length along z; ring_sector: "
-                                                "height"),
+        "lz": Key("float", check=_positive, doc="box: edge length along z; ring_sector, "
+                                                "quarter_cylinder: height"),
         "origin": Key("list[float]", [0.0, 0.0, 0.0], check=_triple,
                       doc="box: the corner with the smallest coordinates [x, y, z]; "
                           "boundaries xmin, xmax, ymin, ymax, zmin, zmax"),

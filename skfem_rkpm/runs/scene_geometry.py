@@ -21,7 +21,10 @@ __all__ = ["DIMENSIONS", "model_dimension", "check_geometry", "check_components"
            "check_mesh", "mesh_from"]
 
 #: the dimension of each kind of geometry (a gmsh file: that of its cells)
-DIMENSIONS = {"rectangle": 2, "annulus": 2, "box": 3, "ring_sector": 3}
+DIMENSIONS = {"rectangle": 2, "annulus": 2, "box": 3, "ring_sector": 3, "quarter_cylinder": 3}
+
+#: what the divisions of a kind count, where not cells along x, y (and z)
+DIVISIONS = {"quarter_cylinder": "[core, core to mantle, along z]"}
 
 #: the cell types of each dimension, the default first
 CELLS = {2: ("quad", "tri"), 3: ("hex", "tet")}
@@ -29,6 +32,7 @@ CELLS = {2: ("quad", "tri"), 3: ("hex", "tet")}
 #: what each kind of geometry needs
 NEEDS = {"rectangle": ("x", "y", "divisions"), "annulus": ("radii", "divisions"),
          "box": ("lx", "ly", "lz", "divisions"), "ring_sector": ("radii", "lz", "divisions"),
+         "quarter_cylinder": ("radius", "lz", "divisions"),
          "gmsh": ("file",)}
 
 
@@ -70,8 +74,10 @@ def check_geometry(scene, fail):
         fail("geometry.cells", f"a {kind} has {' or '.join(CELLS[dim])} cells, "
                                f"not {geometry['cells']!r}")
     if len(geometry["divisions"]) != dim:
-        fail("geometry.divisions", f"a {kind} needs {dim} values "
-                                   + ("[nx, ny, nz]" if dim == 3 else "[nx, ny]"))
+        fail("geometry.divisions", f"a {kind} needs {dim} values " + DIVISIONS.get(
+            kind, "[nx, ny, nz]" if dim == 3 else "[nx, ny]"))
+    if kind == "quarter_cylinder" and geometry["cells"] != "hex":
+        fail("geometry.cells", "a quarter_cylinder has hex cells only")
     if kind == "ring_sector":
         if geometry["cells"] != "hex":
             fail("geometry.cells", "a ring_sector has hex cells only")
@@ -186,6 +192,13 @@ def mesh_from(section, base=None, trust_geo=False):
         try:
             return ring_sector(*section["radii"], section["lz"], *section["divisions"],
                                angle=section["angles"][1])
+        except ValueError as err:
+            raise SceneError(f"geometry: {err}") from err
+    if section["kind"] == "quarter_cylinder":
+        from ..meshes import quarter_cylinder
+
+        try:
+            return quarter_cylinder(section["radius"], section["lz"], *section["divisions"])
         except ValueError as err:
             raise SceneError(f"geometry: {err}") from err
     if section["kind"] == "gmsh":

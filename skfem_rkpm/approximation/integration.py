@@ -39,6 +39,7 @@ from .kernels import get_kernel
 from .laplacian import laplacian_solve
 from .reduction import WHOLE
 from .shape import _window, monomial_exponents
+from .symmetric_cells import symmetric_correction_cells
 
 __all__ = ["cell_geometry", "facet_geometry", "vci_gradients"]
 
@@ -97,7 +98,7 @@ def _pair_kernel(table, x, nodes, radius, kernel, support):
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                   nodes, radius, order, kernel="cubic", support="radial",
-                  axisymmetric=False, symmetric=False, reduction=WHOLE):
+                  axisymmetric=False, symmetric=False, reduction=WHOLE, cells=None):
     """Test-function gradients corrected for variational consistency.
 
     Parameters
@@ -131,6 +132,12 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         sides and balancing matrix, sums over the points, are added up over
         the parts before the coefficients are solved for (on every part
         alike).  Not for ``symmetric``.
+    cells : tuple, optional
+        ``(nqp, cell_particles)`` when the points of ``table`` are the
+        ``nqp`` quadrature points of each cell in turn
+        (:func:`.cell_layout.cell_particles`): the symmetric correction is
+        then formed block by block of points and its system assembled cell
+        by cell (:mod:`.symmetric_cells`), the same correction.
 
     Returns
     -------
@@ -185,6 +192,12 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                              f"problems (here order {order}"
                              + (", axisymmetric" if axisymmetric else "")
                              + "); use integration='vci'")
+        if cells is not None:
+            correction = symmetric_correction_cells(
+                table, x, weights, phi, rhs[:, :, 0], nodes, radius, *cells,
+                solve=_pinned_spd_solve, frame=_affine_frame)
+            correction += table.grads
+            return correction
         return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
                                                    nodes, radius)
     H = _weighted_kernel_matrix(kernel_matrix, p)

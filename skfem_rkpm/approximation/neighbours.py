@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 __all__ = ["grouped_pairs", "group_pointers"]
 
 #: point-candidate tests per block (bounds the temporaries: 8 bytes each)
-TESTS_PER_BLOCK = 2**21
+TESTS_PER_BLOCK = 2**18
 #: relative margin of the candidate test: a candidate is kept if its distance
 #: from the group's centre is below (a_I + R)(1 + margin), so that round-off
 #: in the centre and the spread never drops a pair

@@ -27,14 +27,14 @@ from scipy.sparse.csgraph import connected_components
 
 from . import cell_layout
 
-__all__ = ["symmetric_correction_cells"]
+__all__ = ["point_blocks", "symmetric_correction_cells"]
 
 #: pairs per block of points (the block temporaries: about 10 arrays of
 #: ``m`` rows of this length)
 PAIRS_PER_BLOCK = 2**17
 
 
-def _point_blocks(indptr):
+def point_blocks(indptr):
     """Slices of points whose pairs number about :data:`PAIRS_PER_BLOCK`."""
     npoints = len(indptr) - 1
     q0 = 0
@@ -46,7 +46,7 @@ def _point_blocks(indptr):
 
 
 def _frame(table, x, phi, nodes, radius, q0, q1, Linv=None):
-    """``rows`` (block-local point of each pair), ``P`` (pairs, m) and
+    """``rows`` (block-local point of each pair), ``P`` (m, pairs) and
     ``L⁻¹`` (points, m, m) of the points ``q0:q1`` (``Linv`` if given): the
     arithmetic of the general path, per point the same sums in the same
     order."""
@@ -56,15 +56,14 @@ def _frame(table, x, phi, nodes, radius, q0, q1, Linv=None):
     cols, ph = table.indices[lo:hi], phi[lo:hi]
     weight_sum = np.bincount(rows, ph, minlength=nb)
     size = np.bincount(rows, ph * radius[cols], minlength=nb) / weight_sum
-    P = np.ones((hi - lo, m))
-    P[:, 1:] = ((nodes[:, cols] - x[:, q0 + rows]) / size[rows]).T
+    P = np.ones((m, hi - lo))
+    P[1:] = (np.take(nodes, cols, axis=1) - np.take(x, q0 + rows, axis=1)) / size[rows]
     if Linv is not None:
         return rows, P, Linv
     G = np.empty((nb, m, m))
     for a in range(m):
         for b in range(a, m):
-            G[:, a, b] = G[:, b, a] = np.bincount(rows, ph * P[:, a] * P[:, b],
-                                                  minlength=nb)
+            G[:, a, b] = G[:, b, a] = np.bincount(rows, ph * P[a] * P[b], minlength=nb)
     return rows, P, np.linalg.inv(np.linalg.cholesky(G))
 
 
@@ -90,15 +89,15 @@ def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, ce
     laid = np.zeros((m, element_nodes.shape[0], nelems, nqp))
     Linv = np.empty((nq, m, m))
     diagonal = np.zeros(nnodes)
-    for q0, q1 in _point_blocks(table.indptr):
+    for q0, q1 in point_blocks(table.indptr):
         lo, hi = table.indptr[q0], table.indptr[q1]
         rows, P, Linv[q0:q1] = _frame(table, x, phi, nodes, radius, q0, q1)
-        phiP = phi[lo:hi, None] * P
-        L = Linv[q0:q1][rows]
+        phiP = phi[lo:hi] * P
+        L = Linv[q0:q1].reshape(q1 - q0, m * m).T.copy()  # entry (a, b) in row m a + b
         for a in range(m):  # L⁻¹ is lower triangular
-            block = L[:, a, 0] * phiP[:, 0]
+            block = L[m * a][rows] * phiP[0]
             for b in range(1, a + 1):
-                block += L[:, a, b] * phiP[:, b]
+                block += L[m * a + b][rows] * phiP[b]
             laid[a].reshape(-1)[flat[lo:hi]] = block
         diagonal += np.bincount(cols[lo:hi], weights[q0 + rows] * phi[lo:hi],
                                 minlength=nnodes)
@@ -114,15 +113,18 @@ def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, ce
 
     # t(x_q) = Σ_J P_J φ_J ξ_J, then c_I = φ_I (ξ_I - P_Iᵀ G⁻¹ t)
     out = np.empty((dim, len(cols)))
-    for q0, q1 in _point_blocks(table.indptr):
+    xi = np.ascontiguousarray(xi.T)  # (dim, nnodes)
+    for q0, q1 in point_blocks(table.indptr):
         lo, hi = table.indptr[q0], table.indptr[q1]
         rows, P, L = _frame(table, x, phi, nodes, radius, q0, q1, Linv[q0:q1])
-        nb, ph, xc = q1 - q0, phi[lo:hi], xi[cols[lo:hi]]
-        t = np.stack([np.bincount(rows, ph * P[:, a] * xc[:, k], minlength=nb)
+        nb, ph = q1 - q0, phi[lo:hi]
+        xc = np.take(xi, cols[lo:hi], axis=1)  # (dim, pairs)
+        t = np.stack([np.bincount(rows, ph * P[a] * xc[k], minlength=nb)
                       for a in range(m) for k in range(dim)], axis=1).reshape(nb, m, dim)
-        fit = np.einsum("qba,qbc,qck->qak", L, L, t)  # G⁻¹ t, (nb, m, dim)
-        correction = xc.T.copy()  # (dim, pairs)
-        for a in range(m):
-            correction -= P[:, a] * fit[rows, a, :].T
-        out[:, lo:hi] = ph * correction
+        fit = np.einsum("qba,qbc,qck->akq", L, L, t)  # G⁻¹ t, (m, dim, nb)
+        for k in range(dim):
+            c = xc[k]
+            for a in range(m):
+                c -= P[a] * fit[a, k][rows]
+            np.multiply(ph, c, out=out[k, lo:hi])
     return out

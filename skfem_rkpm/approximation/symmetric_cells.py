@@ -25,6 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from ..assembly import Assembler, Layout
 from . import cell_layout
 
 __all__ = ["point_blocks", "symmetric_correction_cells"]
@@ -77,8 +78,6 @@ def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, ce
     path (:func:`~.integration._pinned_spd_solve`,
     :func:`~.integration._affine_frame`).  See the module docstring.
     """
-    from ..assembly import Assembler, Layout  # the assembly imports no basis
-
     dim, nnodes = nodes.shape
     m, nq = dim + 1, table.npoints
     nelems = nq // nqp

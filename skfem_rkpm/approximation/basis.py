@@ -32,6 +32,7 @@ from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
                                nodal_quadrature)
 from .interpolating import basis_primitive_radius, shape_functions
+from .neighbours import group_pointers
 from .shape import coordinates
 from .visibility import cut_supports
 
@@ -344,7 +345,11 @@ class RKBasis(CellViews, RKBase):
             self._regions.points_of_cells(geometry.tind, geometry.X.shape[-1]),
             self._regions.points_of_cells(mesh.f2t[0, boundary.find], boundary.X.shape[-1]),
             self._regions.particle_region])
-        everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes, labels=labels)
+        # the pair search runs once per cell and facet (and particle)
+        groups = group_pointers((geometry.nelems, geometry.X.shape[-1]),
+                                (boundary.nelems, boundary.X.shape[-1]), (nodes.shape[1], 1))
+        everything = self._shape_table(np.hstack([xq, xb, nodes]), nodes, labels=labels,
+                                       groups=groups)
         # the cell rows stay views: laying them out below frees them array by array
         table, btable, ntable = (cell_layout.table_rows(everything, a, b, copy=a > 0)
                                  for a, b in zip(sizes[:-1], sizes[1:]))
@@ -352,18 +357,20 @@ class RKBasis(CellViews, RKBase):
         self._nodal_matrix = sp.kron(ntable.matrix(), sp.identity(
             nodes.shape[0] if vector else 1), format="csr")
         del ntable
+        cells = cell_layout.cell_particles(table, geometry.nelems, geometry.X.shape[-1])
         if integration in ("vci", "vci_symmetric"):
             corrected = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
-                symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE)
+                symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE,
+                cells=(geometry.X.shape[-1], cells))
             if corrected is not table.grads:  # order 0: nothing to correct
                 table.test_grads = corrected
             del corrected
         del btable
         table.kernel = None  # only VCI reads it: 8 bytes per pair
-        self._setup(mesh, geometry, table, nodes, vector, release=True)
+        self._setup(mesh, geometry, table, nodes, vector, release=True, cells=cells)
         if part is None:
             self._restrict(elements)
         else:
@@ -397,13 +404,14 @@ class RKBasis(CellViews, RKBase):
         self.nodal_quadrature = q
         self._setup(mesh, q.geometry, q.table, nodes, vector)
 
-    def _shape_table(self, x, nodes=None, gradients=True, labels=None):
+    def _shape_table(self, x, nodes=None, gradients=True, labels=None, groups=None):
         nodes = self.nodes if nodes is None else nodes
         regions = getattr(self, "_regions", None)
         if regions is None:
             return shape_functions(
                 x, nodes, self.radius, self.order, self.kernel, self.support_shape,
-                gradients=gradients, dilation=self.dilation, primitive=self._primitive)
+                gradients=gradients, dilation=self.dilation, primitive=self._primitive,
+                groups=groups)
         primitive = self._primitive
         return regions.table(x, regions.locate(x) if labels is None else labels,
                              lambda y, m: shape_functions(

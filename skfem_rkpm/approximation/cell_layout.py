@@ -8,8 +8,8 @@ import scipy.sparse as sp
 
 from .shape import ShapeTable
 
-__all__ = ["table_rows", "cell_particles", "padded", "scattered", "pair_entries",
-           "pair_table", "gathered"]
+__all__ = ["table_rows", "cell_particles", "element_nodes", "padded", "scattered",
+           "pair_entries", "pair_table", "gathered"]
 
 
 def table_rows(table, start, stop, copy=False):
@@ -55,6 +55,18 @@ def cell_particles(table, nelems, nqp):
     return indptr, indices, slot
 
 
+def element_nodes(cells, nelems):
+    """The particle of each local slot (nloc, nelems) of the cells
+    ``cells`` (:func:`cell_particles`); padding slots point at the cell's
+    first particle."""
+    indptr, indices = cells[0], cells[1]
+    count = np.diff(indptr)
+    nodes = np.repeat(indices[indptr[:-1]][None, :], int(count.max()), axis=0)
+    nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
+          np.repeat(np.arange(nelems), count)] = indices
+    return nodes
+
+
 def padded(table, nelems, nqp, cells=None, release=False):
     """Per-cell padded node lists and values from a pair table.
 
@@ -69,14 +81,11 @@ def padded(table, nelems, nqp, cells=None, release=False):
     ``test_grads`` of its own (VCI), its exact gradients as they are, pairs
     (dim, npairs), else None: :func:`scattered` lays them out when needed.
     """
-    indptr, indices, slot = cells or cell_particles(table, nelems, nqp)
-    count = np.diff(indptr)
-    nloc = int(count.max())
+    cells = cells or cell_particles(table, nelems, nqp)
     # padding slots point at the cell's first particle and carry zeros
-    element_nodes = np.repeat(indices[indptr[:-1]][None, :], nloc, axis=0)
-    element_nodes[np.arange(len(indices)) - np.repeat(indptr[:-1], count),
-                  np.repeat(np.arange(nelems), count)] = indices
-    flat = pair_entries(table.indptr, (indptr, indices, slot), nelems, nqp)[-1]
+    nodes = element_nodes(cells, nelems)
+    nloc = nodes.shape[0]
+    flat = pair_entries(table.indptr, cells, nelems, nqp)[-1]
     if release:
         table.indices = None
     test = "grads" if table.test_grads is None else "test_grads"
@@ -88,7 +97,7 @@ def padded(table, nelems, nqp, cells=None, release=False):
         if release:
             setattr(table, name, None)
         del pairs
-    return (element_nodes, laid["values"], laid[test],
+    return (nodes, laid["values"], laid[test],
             None if test == "grads" else table.grads)
 
 

@@ -39,6 +39,7 @@ from .kernels import get_kernel
 from .laplacian import laplacian_solve
 from .reduction import WHOLE
 from .shape import _window, monomial_exponents
+from .symmetric_cells import point_blocks, symmetric_correction_cells
 
 __all__ = ["cell_geometry", "facet_geometry", "vci_gradients"]
 
@@ -97,7 +98,7 @@ def _pair_kernel(table, x, nodes, radius, kernel, support):
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                   nodes, radius, order, kernel="cubic", support="radial",
-                  axisymmetric=False, symmetric=False, reduction=WHOLE):
+                  axisymmetric=False, symmetric=False, reduction=WHOLE, cells=None):
     """Test-function gradients corrected for variational consistency.
 
     Parameters
@@ -131,6 +132,12 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         sides and balancing matrix, sums over the points, are added up over
         the parts before the coefficients are solved for (on every part
         alike).  Not for ``symmetric``.
+    cells : tuple, optional
+        ``(nqp, cell_particles)`` when the points of ``table`` are the
+        ``nqp`` quadrature points of each cell in turn
+        (:func:`.cell_layout.cell_particles`): the symmetric correction is
+        then formed block by block of points and its system assembled cell
+        by cell (:mod:`.symmetric_cells`), the same correction.
 
     Returns
     -------
@@ -185,6 +192,12 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                              f"problems (here order {order}"
                              + (", axisymmetric" if axisymmetric else "")
                              + "); use integration='vci'")
+        if cells is not None:
+            correction = symmetric_correction_cells(
+                table, x, weights, phi, rhs[:, :, 0], nodes, radius, *cells,
+                solve=_pinned_spd_solve, frame=_affine_frame)
+            correction += table.grads
+            return correction
         return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
                                                    nodes, radius)
     H = _weighted_kernel_matrix(kernel_matrix, p)
@@ -195,7 +208,7 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     # ā(x_q) = Σ_J S_J a_J = (H ξ)_q / Φ_q, with S_J = φ_J / Φ the Shepard functions
     mean = (H @ xi.reshape(nnodes * m, dim)) / Phi[:, None]  # (nq, dim)
     if m == 1:  # a_I = ξ_I
-        correction = np.take(np.ascontiguousarray(xi[:, 0, :].T), cols, axis=1)
+        return _constant_correction(table, xi[:, 0, :], mean, phi)
     else:  # a_I(x_q) = ξ_I · p(x_q) at the pairs
         correction = np.einsum("na,nak->kn", p, xi[cols])
     for k in range(dim):  # one row at a time: np.repeat of a 2D array is slow
@@ -203,6 +216,25 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
     correction *= phi
     correction += table.grads
     return correction
+
+
+def _constant_correction(table, xi, mean, phi):
+    """``∇Ψ_I + φ_I (ξ_I - ā(x_q))`` at the pairs of ``table`` (dim, npairs),
+    for ``a_I = ξ_I`` (basis order 1; ``xi`` (nnodes, dim), ``mean`` (nq,
+    dim)), block by block of points: no temporary as long as the pairs."""
+    dim = xi.shape[1]
+    out = np.empty((dim, len(phi)))
+    xi, mean, indptr = np.ascontiguousarray(xi.T), np.ascontiguousarray(mean.T), table.indptr
+    for q0, q1 in point_blocks(indptr):
+        lo, hi = indptr[q0], indptr[q1]
+        counts, cols = np.diff(indptr[q0:q1 + 1]), table.indices[lo:hi]
+        for k in range(dim):
+            c = np.take(xi[k], cols)
+            c -= np.repeat(mean[k, q0:q1], counts)
+            c *= phi[lo:hi]
+            c += table.grads[k, lo:hi]
+            out[k, lo:hi] = c
+    return out
 
 
 def _moment_integrals(kernel_matrix, p, weights, m):

@@ -114,7 +114,7 @@ def _solve(H, lowered, phi, dphi, phat, dphat, inv_s, starts, counts, gradients)
 def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
                                   support="radial", gradients=True, dilation=None,
                                   rcond_min=RCOND_MIN, primitive=None,
-                                  primitive_window=None):
+                                  primitive_window=None, groups=None):
     """Interpolating RK shape functions ``N_I(X)`` and ``∂N_I/∂X``.
 
     The construction of Chen, Han, You & Meng (2003) (see the module
@@ -141,6 +141,9 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
     primitive_window : str or callable, optional
         Window of the primitive functions (default ``kernel``); any window
         positive at 0 and zero from ``z = 1`` on keeps the delta property.
+    groups : ndarray, optional
+        Groups of nearby points for the pair search, as in
+        :func:`~.shape.rk_shape_functions`.
 
     Returns
     -------
@@ -180,7 +183,7 @@ def interpolating_shape_functions(x, nodes, radius, order=1, kernel="cubic",
     m = len(exps)
     build, lowered = _monomial_recurrences(exps)
 
-    ipoint, inode = find_pairs(x.T.copy(), nodes.T.copy(), radius, support)
+    ipoint, inode = find_pairs(x.T.copy(), nodes.T.copy(), radius, support, groups)
     counts = np.bincount(ipoint, minlength=npoints)
     indptr = np.concatenate([[0], np.cumsum(counts)])
     if np.any(counts < m):

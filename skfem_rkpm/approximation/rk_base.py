@@ -23,7 +23,7 @@ __all__ = ["RKBase"]
 class RKBase(AbstractBasis):
     """What cell and facet RK bases share: dofs, local functions, fields."""
 
-    def _setup(self, mesh, geometry, table, nodes, vector, release=False):
+    def _setup(self, mesh, geometry, table, nodes, vector, release=False, cells=None):
         """Lay out ``table`` per cell (:func:`.cell_layout.padded`), with
         its ``test_grads`` where it has them (VCI).
 
@@ -32,6 +32,7 @@ class RKBase(AbstractBasis):
         basis); :attr:`table` and :attr:`test_grads` gather the pair layout
         from them when asked.  ``release``: the table's pair arrays may be
         dropped while they are laid out (the caller keeps no use for them).
+        ``cells``: :func:`.cell_layout.cell_particles` of ``table`` if known.
         """
         self.mesh = mesh
         self.geometry = geometry
@@ -44,7 +45,7 @@ class RKBase(AbstractBasis):
         self.mapping = geometry.mapping
         nqp = self.X.shape[-1]
         self._pairs = table.indptr
-        self._cells = cell_layout.cell_particles(table, self.nelems, nqp)
+        self._cells = cells or cell_layout.cell_particles(table, self.nelems, nqp)
         self.element_nodes, self.values, self.grads, self._exact_grads = cell_layout.padded(
             table, self.nelems, nqp, self._cells, release=release)
         self.Nbfun = self.ncomp * self.element_nodes.shape[0]

@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from .kernels import get_kernel
+from .neighbours import grouped_pairs
 from .shape_backend import BackendUnavailableError, compiled_backend, kernel_name
 
 __all__ = [
@@ -186,7 +187,7 @@ def _monomials(xi, build, m):
     return H
 
 
-def find_pairs(points, nodes, radius, support="radial"):
+def find_pairs(points, nodes, radius, support="radial", groups=None):
     """All (point, node) pairs with the point strictly inside the node's support.
 
     Parameters
@@ -197,6 +198,10 @@ def find_pairs(points, nodes, radius, support="radial"):
         Support radius ``a_I`` of each node.
     support : {"radial", "box"}
         Circle/sphere (Euclidean distance) or box (max-norm) supports.
+    groups : ndarray, optional
+        Pointers (CSR) of groups of consecutive, nearby points (the
+        quadrature points of a cell): the particles are then searched once
+        per group (:func:`~.neighbours.grouped_pairs`), the same pairs.
 
     Returns
     -------
@@ -204,6 +209,8 @@ def find_pairs(points, nodes, radius, support="radial"):
         Pair lists sorted by point, then node.
     """
     p = {"radial": 2.0, "box": np.inf}[support]
+    if groups is not None:
+        return grouped_pairs(points, nodes, radius, p, groups)
     tree = cKDTree(points, balanced_tree=False)
     # group nodes by radius (factor 1.5 per group) so that graded supports
     # are not all searched with the largest radius
@@ -361,6 +368,7 @@ def rk_shape_functions(
     dilation=None,
     rcond_min=RCOND_MIN,
     backend=None,
+    groups=None,
 ):
     """Reproducing kernel shape functions Ψ_I(X) and ∂Ψ_I/∂X, Eq. (3.16)-(3.19).
 
@@ -395,6 +403,10 @@ def rk_shape_functions(
         table (the same pairs in the same order, values equal to round-off).
         Default: the environment variable ``SKFEM_RKPM_SHAPE_BACKEND``, or
         ``"auto"``.
+    groups : ndarray, optional
+        Pointers (CSR) of groups of consecutive, nearby points, such as the
+        quadrature points of one cell: the numpy path then searches the
+        particles once per group (:func:`find_pairs`); the same table.
 
     Returns
     -------
@@ -444,7 +456,7 @@ def rk_shape_functions(
             return table
         # a point is not covered well enough: the numpy path reports it
     table, bad, why = _build(x, nodes, radius, exps, window, support,
-                             gradients, rcond_min)
+                             gradients, rcond_min, groups)
     if bad.size:
         _raise_singular(bad, np.diff(table.indptr), x, nodes, radius, order,
                         window, support, dilation, rcond_min, why)
@@ -534,11 +546,11 @@ def blocked_pairs(x, nodes, radius, ipoint, inode, indptr, counts, window, suppo
     return values, grads, kernel, rcond
 
 
-def _build(x, nodes, radius, exps, window, support, gradients, rcond_min):
+def _build(x, nodes, radius, exps, window, support, gradients, rcond_min, groups=None):
     """Compute the table; return it with the failing points and the reason."""
     dim, npoints = x.shape
     m = len(exps)
-    ipoint, inode = find_pairs(x.T.copy(), nodes.T.copy(), radius, support)
+    ipoint, inode = find_pairs(x.T.copy(), nodes.T.copy(), radius, support, groups)
     counts = np.bincount(ipoint, minlength=npoints)
     indptr = np.concatenate([[0], np.cumsum(counts)])
     table = ShapeTable(indptr, inode, None, None, nodes.shape[1])

@@ -181,8 +181,9 @@ def test_ring_tangent_is_the_derivative_of_the_internal_force():
     uses.  The error of central differences is ``~h² |f'''| + ε |f| / h``:
     from h = 1e-5 to 1e-6 of the coordinates' span it falls ~100 times
     (second order: asserted 30) to below 1e-7 of ``|K v|`` (measured
-    4.2e-7 and 4.2e-9), which a missing term of the tangent (the stabilization, the
-    hoop row, a plastic correction) would not."""
+    4.2e-7 and 4.2e-9), which a missing term of the tangent (the
+    stabilization, the hoop row, a plastic correction) would not: without
+    the stabilization's the error stays at 1.2e-4."""
     problem = ring_problem()
     d, _ = plastic_tangent(problem)
     ev = problem.evaluate(d)

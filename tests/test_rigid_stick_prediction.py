@@ -18,15 +18,16 @@ from skfem_rkpm.solvers.newton import newton_steps
 from test_contact import TOOLS, problem_on
 
 
-@pytest.mark.parametrize("kind", ["fem", "rk"])
-def test_linearized_law_is_the_first_order_change_of_the_law(kind):
+@pytest.mark.parametrize("kind, collocation", [("fem", "nodal"), ("rk", "nodal"),
+                                               ("rk", "quadrature")])
+def test_linearized_law_is_the_first_order_change_of_the_law(kind, collocation):
     """``linearized_law(ε δ)`` against the trial shear and the pressure
     evaluated at ``d + ε δ`` under an arc (curved: the law is not linear in
     ``d``), in slip: relative to the change, the difference falls as ε
     (second order: a factor ~10 from ε = 1e-2 to 1e-3; asserted 5).  A sign
     or a term missing in the linearization leaves an error of order 1."""
     problem = problem_on(kind, rectangle(1.0, 0.5, 4, 2))
-    contact = RigidContact(problem, TOOLS["arc"](), "top", 0.02, "nodal", penalty=1e5,
+    contact = RigidContact(problem, TOOLS["arc"](), "top", 0.02, collocation, penalty=1e5,
                            tangential_penalty=2e4)
     rng = np.random.default_rng(4)
     d0 = 0.003 * rng.normal(size=problem.N)

@@ -59,9 +59,10 @@ def sticking(contact, delta):
     changes of its force and tangent at the last evaluation when those
     nodes take the stick branch; None if there are none (or no tangent
     was formed, or ``μ`` is 0 or infinite)."""
-    if contact._linear is None or contact._linear[6] is None or not 0.0 < contact.mu < np.inf:
+    linear = contact._linear
+    if linear is None or linear[6] is None or not 0.0 < contact.mu < np.inf:
         return None
-    d, t, _, _, law, f0, K0 = contact._linear
+    d, t, _, _, law, f0, K0 = linear
     candidates = law[2] & law[3] & ~contact._freeze.sliding
     if not candidates.any():
         return None

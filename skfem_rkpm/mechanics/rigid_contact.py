@@ -19,6 +19,7 @@ from .friction import (DEFAULT_AUGMENTED_TOLERANCE, DEFAULT_PENALTY_FACTOR,
 from .contact_status import StatusFreeze
 from .problem import NonFiniteError
 from .slave_points import slave_points
+from .stick_prediction import sticking
 from .tools import Tool
 
 __all__ = ["RigidContact", "ToolSideError"]
@@ -351,6 +352,8 @@ class RigidContact:
         # coarse cup draw a cut-back, and finite μ ends grazing by slipping)
         self._freeze = StatusFreeze(self.points.m, enabled=(enforcement == "augmented"
                                                              and self.mu == np.inf))
+        self._held_stick = None  # nodes held in stick by sticking() (a linear model)
+        self._linear = None  # (d, t, proj, slipped, law, f, K) of the last evaluation
         self.state = self.trial = self._initial_state()
         self.restart()
         self._check_start()
@@ -395,6 +398,10 @@ class RigidContact:
         phi, dphi = _touch_fraction(node_gap, state.node_gap, state.active)
         shear, slip = self._freeze.release(*coulomb(
             pressure, self.multipliers[1] - self.omega_t * phi * slip_t, self.mu))
+        if self._held_stick is not None:  # the stick branch of sticking()'s nodes
+            shear = np.where(self._held_stick, self.multipliers[1] - self.omega_t * phi
+                             * slip_t, shear)
+            slip = slip & ~self._held_stick
         law = (pressure, np.where(active, shear, 0.0), slip & active, active, slip_t, phi,
                dphi)
         return node_gap, law
@@ -428,7 +435,14 @@ class RigidContact:
         self.trial = ContactState(x, proj.gap, proj.normal, proj.tangent, relative,
                                   node_gap, pressure, shear, law[2], law[3],
                                   (pts.weights * traction).sum(axis=1), t)
+        self._linear = (d, t, proj, slipped, law, f, K)
         return f, K
+
+    def sticking(self, delta):
+        """The slipping nodes that the update ``delta`` brings into stick, with
+        the force and stiffness changes of their stick branch in the linear
+        model (:func:`~skfem_rkpm.mechanics.stick_prediction.sticking`)."""
+        return sticking(self, delta)
 
     def touching(self, delta):
         """Penalty force and stiffness of the contact nodes that the update

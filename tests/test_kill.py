@@ -1,6 +1,6 @@
 """Runs killed at random moments, then resumed, end as an uninterrupted run.
 
-``skfem-rkpm run`` on the small ring (6 load steps, 15 converged steps with
+``skfem-rkpm run`` on the small ring (6 load steps, 11 converged steps with
 cut-backs) in a subprocess is killed with SIGKILL and SIGTERM alternately
 after a random delay (seeded), then started again with ``--resume`` (or
 afresh when it died before its first checkpoint), until it completes.  The

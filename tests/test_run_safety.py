@@ -1,9 +1,7 @@
 """Run folders you can trust after a crash, and files from others that run nothing.
 
-The small ring (6 × 4 cells, 6 load steps: 15 converged steps, about 1 s)
-stands for a scene run.  Its step control is busy: step 1 is cut back twice,
-steps 2-9 grow the step again (the size is remembered), step 10 is cut
-back once.
+The small ring (6 × 4 cells, 6 load steps: 11 converged steps, about 1 s)
+stands for a scene run.  Its step control is busy: it cuts back twice.
 """
 
 import csv

@@ -63,6 +63,17 @@ class ExplicitResult:
     cpu_seconds: float = 0.0
 
 
+def dynamic_times(sim, resume, scheme):
+    """``(dynamics, duration, output interval)`` of a dynamic scene run by
+    ``scheme`` ("explicit" or "implicit"); ``resume`` is refused, as a
+    dynamic run writes no checkpoint."""
+    if resume:
+        raise ValueError(f"--resume: an {scheme} run writes no checkpoint and cannot "
+                         f"resume; run it again without --resume")
+    dynamics = dynamics_of(sim.scene)
+    return dynamics, dynamics["duration"], dynamics["output_interval"] or dynamics["duration"] / 10
+
+
 def interrupted_text(result, scheme):
     """The status of a dynamic run stopped by Ctrl-C or SIGTERM: how far it
     got, and that it does not resume."""
@@ -231,12 +242,7 @@ def run_explicit(sim, out=None, progress=True, resume=False, overwrite=False):
     KeyboardInterrupt
         On Ctrl-C or SIGTERM, after the row being written is complete.
     """
-    if resume:
-        raise ValueError("--resume: an explicit run writes no checkpoint and cannot "
-                         "resume; run it again without --resume")
-    dynamics = dynamics_of(sim.scene)
-    duration = dynamics["duration"]
-    interval = dynamics["output_interval"] or duration / 10
+    dynamics, duration, interval = dynamic_times(sim, resume, "explicit")
     scheme = explicit_scheme(sim)
     probes = _point_probes(sim.basis, sim.points)
     d0, v0 = np.zeros(sim.basis.N), initial_velocity(sim)

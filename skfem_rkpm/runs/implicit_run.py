@@ -37,11 +37,12 @@ from ..solvers.linear import make_solver
 from ..solvers.newton import newton_steps
 from ..solvers.time_integration import Newmark
 from .explicit_run import (ExplicitResult, _Progress, console_finish, dynamic_outputs,
-                           initial_velocity, interrupted_text, time_text)
+                           dynamic_times, initial_velocity, interrupted_text,
+                           time_text)
 from .folder import status_on_failure
 from .runner import _gauges, _Interrupts, _point_probes, final_state_message
 from .scene_dynamics import dynamics_of
-from .stops import _position_now
+from .stops import inverted_cause
 
 __all__ = ["implicit_scheme", "implicit_steps", "run_implicit", "implicit_stop_report",
            "summary", "console_run"]
@@ -120,12 +121,8 @@ def run_implicit(sim, out=None, progress=True, resume=False, overwrite=False, lo
     KeyboardInterrupt
         On Ctrl-C or SIGTERM, after the row being written is complete.
     """
-    if resume:
-        raise ValueError("--resume: an implicit run writes no checkpoint and cannot "
-                         "resume; run it again without --resume")
-    dynamics, steps = dynamics_of(sim.scene), sim.scene["steps"]
-    duration = dynamics["duration"]
-    interval = dynamics["output_interval"] or duration / 10
+    dynamics, duration, interval = dynamic_times(sim, resume, "implicit")
+    steps = sim.scene["steps"]
     count = implicit_steps(sim.scene)
     solver = make_solver(steps["solver"], reuse_factorization=steps["reuse_factorization"])
     scheme = implicit_scheme(sim)
@@ -210,13 +207,7 @@ def implicit_stop_report(sim, result, message=""):
                f"{result.steps} converged time steps (dynamics.time_step = "
                f"{dynamics['time_step']:.4g} s)")
     if isinstance(error, InvertedElementError):
-        points = np.atleast_1d(getattr(error, "points", []))
-        where = ""
-        if points.size:
-            x = _position_now(sim, result.d, int(points[0]))
-            where = (f"; that point is at x = ({', '.join(f'{v:.4g}' for v in x)}) in "
-                     f"the last converged state")
-        cause = f"det F <= 0: {error}{where}"
+        cause = inverted_cause(sim, error, result.d)
     elif isinstance(error, NonFiniteError):
         cause = f"a non-finite value: {error}"
     else:

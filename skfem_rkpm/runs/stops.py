@@ -71,6 +71,18 @@ def _position_now(sim, d, point):
     return X[:, point] + u[:, point]
 
 
+def inverted_cause(sim, error, d, state="in the last converged state"):
+    """``det F <= 0: <error>`` and where its first point is in the state
+    ``d`` (``state`` names that state), for a run stopped by an
+    :class:`~skfem_rkpm.mechanics.problem.InvertedElementError`."""
+    points = np.atleast_1d(getattr(error, "points", []))
+    where = ""
+    if points.size and d is not None and not getattr(sim.problem, "partitioned", False):
+        x = _position_now(sim, d, int(points[0]))
+        where = f"; that point is now at x = ({', '.join(f'{v:.4g}' for v in x)}) {state}"
+    return f"det F <= 0: {error}{where}"
+
+
 def _integration(sim):
     return "fem" if sim.method == "fem" else sim.scene["discretization"]["integration"]
 
@@ -83,13 +95,7 @@ def _cause(sim, result):
                   f"or more cut-backs (--set steps.max_cutbacks="
                   f"{sim.scene['steps']['max_cutbacks'] + 4})")
     if isinstance(error, InvertedElementError):
-        points = np.atleast_1d(getattr(error, "points", []))
-        where = ""
-        if points.size and not getattr(sim.problem, "partitioned", False):
-            x = _position_now(sim, result.d, int(points[0]))
-            where = (f"; that point is now at x = ({', '.join(f'{v:.4g}' for v in x)}) "
-                     "in the last converged state")
-        failed = f"det F <= 0: {error}{where}"
+        failed = inverted_cause(sim, error, result.d)
         if scheme == "fem":
             return failed, ("the elements fold: try --method rkpm (particles with smooth "
                             "functions over several cells) or " + more_steps)
@@ -156,13 +162,7 @@ def explicit_stop_report(sim, result):
     reached = (f"reached t = {result.time:.4g} s of {result.duration:.4g} s in "
                f"{result.steps} explicit steps")
     if isinstance(error, InvertedElementError):
-        points = np.atleast_1d(getattr(error, "points", []))
-        where = ""
-        if points.size:
-            x = _position_now(sim, result.d, int(points[0]))
-            where = (f"; that point is at x = ({', '.join(f'{v:.4g}' for v in x)}) after "
-                     f"the last finished step")
-        cause = f"det F <= 0: {error}{where}"
+        cause = inverted_cause(sim, error, result.d, "after the last finished step")
         advice = ("the cells fold faster than one step resolves: a smaller step "
                   "(--set dynamics.safety=0.5), a finer mesh, or "
                   + ("--method rkpm" if sim.method == "fem" else

@@ -78,6 +78,9 @@ def test_a_final_state_names_whether_the_map_folds(tmp_path):
     assert (found[1] == "folds") == (value <= 0)
     if found[1] == "folds":
         assert message.endswith("use more load steps, a finer mesh or another discretization")
+        dynamic = runner.final_state_message(sim, d, "a smaller dynamics.time_step")
+        assert dynamic.endswith("use a smaller dynamics.time_step, a finer mesh or another "
+                                "discretization")
     else:
         assert message.endswith("only the drawn cells fold")
 

@@ -285,7 +285,8 @@ def run_explicit(sim, out=None, progress=True, resume=False, overwrite=False):
                 result.cpu_seconds = clock.process_time() - start
         if result.error is None:
             result.completed = True
-            result.message = final_state_message(sim, result.d)
+            result.message = final_state_message(
+                sim, result.d, "a smaller dynamics.safety (a shorter time step)")
         else:
             result.message = "stopped"
             result.report = explicit_stop_report(sim, result)

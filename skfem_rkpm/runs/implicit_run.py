@@ -187,7 +187,7 @@ def run_implicit(sim, out=None, progress=True, resume=False, overwrite=False, lo
                 result.cpu_seconds = clock.process_time() - start
         result.completed = outcome.completed
         if outcome.completed:
-            result.message = final_state_message(sim, outcome.d)
+            result.message = final_state_message(sim, outcome.d, "a smaller dynamics.time_step")
         else:
             result.d, result.error = outcome.d, outcome.error
             result.message = "stopped"

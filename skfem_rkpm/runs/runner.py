@@ -335,19 +335,20 @@ def _run_steps(sim, start, writer, folder, interrupts, progress, log, solver, ga
     return result
 
 
-def final_state_message(sim, d):
+def final_state_message(sim, d, remedy="more load steps"):
     """"completed", or "completed with inverted cells: …" naming the
     corner with the smallest ``det F`` when a cell of the final state is
     folded (:func:`~skfem_rkpm.runs.io.corner_jacobians`): Newton checks
     ``det F`` at the quadrature points only, so a corner may fold while
     every step converges.  Either says whether the deformation map itself
     folds (:func:`~skfem_rkpm.runs.fold_report.map_check`: sampled in every
-    cell) or only the drawn cells do."""
+    cell) or only the drawn cells do.  ``remedy`` is the first advice for an
+    invalid state (a dynamic run's is a smaller time step)."""
     folded, where = drawn_cells(sim, d)
     check = map_check(sim, d)
     if not folded.size and (check is None or check.valid):
         return "completed"
-    invalid = ("the final state is not a valid deformation: use more load steps, a finer "
+    invalid = (f"the final state is not a valid deformation: use {remedy}, a finer "
                "mesh or another discretization")
     if not folded.size:
         return f"completed with a folded map: {check.describe()}; {invalid}"

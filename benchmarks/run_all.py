@@ -68,6 +68,8 @@ SUITE = {
     "basis_memory": (["--particles", "1e5"], ["--particles", "17227"], (0.5, 0.1)),
     "interpolating_basis": ([], ["--repeat", "1"], (0.5, 0.3)),
     "saddle_point": ([], ["--scene", "billet_3d", "--repeat", "1"], (1, 0.2)),
+    "dynamic_ring": (["--figure", "{figures}/dynamic_ring.png"], ["--quick", "--repeat", "1"],
+                     (15, 0.5)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

@@ -327,6 +327,8 @@ def parse_scene(text, source="<scene>", base=None, origins=None):
             scene[name] = _section(name, {}, fail)
     if scene["material"]["density"] is None:  # a static scene's keys as before it
         del scene["material"]["density"]
+    for name in [n for n in scene if n.startswith("tools.") and scene[n]["ramp"] is None]:
+        del scene[name]["ramp"]
     scene["_base"] = str(base) if base is not None else None
     _check_combinations(scene, fail)
     scene["_source"] = source

@@ -139,6 +139,7 @@ def check_dynamics(scene, fail):
     if velocity is not None and len(velocity) != dim:
         fail("initial.velocity", f"needs {dim} components (model.type = "
                                  f"{scene['model']['type']!r}), not {len(velocity)}")
+    _check_ramps(scene, scheme, fail)
     if scheme == "static":
         if velocity is not None:
             fail("initial.velocity", "an initial velocity needs a dynamics scheme: set "
@@ -168,6 +169,21 @@ def check_dynamics(scene, fail):
         _check_implicit(scene, dynamics, fail)
         return
     _check_explicit_conditions(scene, fail)
+
+
+def _check_ramps(scene, scheme, fail):
+    """``tools.NAME.ramp``: a smooth start in time, of a tool that moves."""
+    for name, section in scene.items():
+        if not name.startswith("tools.") or section.get("ramp") is None:
+            continue
+        if scheme == "static":
+            fail(f"{name}.ramp", "a smooth start in time needs a dynamics scheme (static "
+                                 "load steps follow the motion linearly): set "
+                                 "dynamics.scheme = \"implicit\" or \"explicit\", or "
+                                 "remove the key")
+        if not any(section.get("motion") or ()) and section.get("rotation") is None:
+            fail(f"{name}.ramp", "the tool does not move: give it a motion (or a "
+                                 "rotation), or remove the key")
 
 
 def _check_implicit(scene, dynamics, fail):

@@ -11,6 +11,7 @@ as the model has dimensions.
 
 from pathlib import Path
 
+from ..mechanics.ramp import SmoothStart, ramped
 from .scene_values import (HISTORY, Key, SceneError, _friction, _history, _non_negative,
                            _not_empty, _polyline_points, _positive)
 
@@ -19,6 +20,10 @@ __all__ = ["TOOL_SCHEMA", "TOOL_KINDS", "check_tool", "tool_from"]
 
 def _vector(v):
     return None if len(v) in (2, 3) else "needs two values (2D) or three (3D)"
+
+
+def _fraction(v):
+    return None if 0.0 <= v <= 1.0 else "must be a fraction of the run in [0, 1]"
 
 
 def _side(v):
@@ -65,6 +70,11 @@ TOOL_SCHEMA = {
                     "needs 7 values: axis (3), a point of it (3), angle in degrees",
                     doc="3D: rotation about a fixed axis reached at the end of the run, "
                         "[ax, ay, az, px, py, pz, degrees] (a roll)"),
+    "ramp": Key("float", check=_fraction,
+                doc="dynamics: fraction of the duration over which the tool's speed rises "
+                    "smoothly from zero (3τ² − 2τ³) to a constant speed, instead of "
+                    "starting at full speed; the tool still reaches its motion (and "
+                    "rotation) at the end (default 0; docs/dynamics.md)"),
     "force": Key("any", check=_history,
                  doc="force-driven tool: its push on the body along direction "
                      "follows this force history (" + HISTORY + "); the tool travels "
@@ -126,7 +136,11 @@ def _rotation(section):
     values = section.get("rotation")
     if values is None:
         return None
-    return {"axis": values[:3], "point": values[3:6], "angle": values[6]}
+    angle = values[6]
+    if section.get("ramp"):
+        profile = SmoothStart(section["ramp"])
+        angle = lambda t: float(profile(t)) * values[6]  # noqa: E731
+    return {"axis": values[:3], "point": values[3:6], "angle": angle}
 
 
 #: triangulated tools built lately, by file (path, modification time, size)
@@ -156,6 +170,8 @@ def tool_from(name, section, dim=2, base=None):
     folder that a surface's file is relative to)."""
     kind = section.get("kind", "platen")
     motion = section.get("motion") or (0.0,) * dim
+    if section.get("ramp"):
+        motion = ramped(motion, section["ramp"])
     if dim == 2:
         from ..mechanics.tools import Arc, Platen, Polyline
 

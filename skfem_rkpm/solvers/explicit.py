@@ -11,7 +11,8 @@ The stable step ``2 / ω_max`` is estimated on the current configuration
 and recomputed every ``estimate_every`` steps:
 
 - the body's ``ω²`` is the largest eigenvalue of ``M⁻¹K`` with the tangent
-  ``K`` of the current state (Lanczos, started from the last eigenvector);
+  ``K`` of the current state (Lanczos, started from the last eigenvector,
+  with the products of the tangent formed without its matrix);
 - the penalty contact adds at most the Gershgorin bound of
   ``Gᵀ diag(ω w) G`` over ``m`` (Weyl's inequality: the largest eigenvalue
   of a sum is at most the sum of the largest ones), computed once, as if
@@ -151,11 +152,19 @@ class CentralDifference:
         """Largest ``ω²`` of ``M⁻¹K`` with the tangent at coefficients ``d``
         (Lanczos on ``M^(-1/2) K_sym M^(-1/2)``; the symmetric part bounds the
         real parts of a non-symmetric tangent's eigenvalues; the first from a
-        fixed random start, so that a run repeats to the last bit)."""
-        K = sp.csr_matrix(self.problem.evaluate(d, state).K)
+        fixed random start, so that a run repeats to the last bit, each later
+        one from the last eigenvector).
+
+        ``K_sym`` is applied without the matrix
+        (:meth:`SolidProblem.tangent_operator`): a product costs about a
+        force evaluation, the assembled matrix of an RK basis far more than
+        all the products of a Lanczos run.
+        """
+        evaluation = self.problem.evaluate(d, state)
+        K = self.problem.tangent_operator(evaluation).symmetric_operator()
         if self._mode is None:  # a fixed start: ARPACK's own is random, the run would not repeat
             self._mode = np.random.default_rng(0).standard_normal(K.shape[0])
-        omega2, self._mode = scaled_largest(0.5 * (K + K.T), self.mass, self._mode, tol=1e-6)
+        omega2, self._mode = scaled_largest(K, self.mass, self._mode, tol=1e-6)
         return omega2
 
     def stable_step(self, d, state=None):

@@ -599,6 +599,19 @@ class Assembler:
         H = grads @ U.transpose(1, 0, 2)[:, None]
         return H.transpose(3, 2, 0, 1)
 
+    def gradient_table(self, test=False):
+        """``∂_m N_a`` of every cell as (nelems, nqp * dim, nloc) (rows in the
+        order (q, m)); ``test=True``: the test gradients ``∂_m Ñ_a``."""
+        G = self._test_grads(slice(None)) if test else self._trial_grads(slice(None))
+        return G.reshape(G.shape[0], -1, G.shape[-1])
+
+    def weighted_table(self, test=True):
+        """``∂_l Ñ_a dΩ`` of every cell as (nelems, nloc, nqp * dim) (columns in
+        the order (q, l)); ``test=False``: the trial gradients."""
+        everything = slice(None)
+        return (self._weighted_test_grads(everything) if test
+                else self._weighted_trial_grads(everything))
+
     @property
     def same_gradients(self):
         """Test and trial gradients are equal (no VCI correction): the

@@ -15,13 +15,16 @@ for an RK basis (its local matrices hold ``(3 nloc)²`` entries a cell).
 ``Kᵀ v`` swaps the roles of the test and trial gradients (they differ
 with VCI) and transposes ``A`` and the rank-one blocks; the symmetric part
 ``½ (K + Kᵀ)`` is what the stable-step estimate needs
-(:meth:`~skfem_rkpm.solvers.explicit.CentralDifference.body_frequency2`).
+(:meth:`~skfem_rkpm.solvers.explicit.CentralDifference.body_frequency2`);
+with VCI it is one pass through the trial and test gradient tables stacked
+(``[∇Ψ; ∇̃Ψ] v``, then ``[∇̃Ψ, ∇Ψ] · [A ∇v; Aᵀ ∇̃v] / 2``), without it one
+pass through ``½ (A + Aᵀ)``.
 """
 
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
-from .kinematics import entries, from_entries
+from .kinematics import entries
 
 __all__ = ["TangentOperator"]
 
@@ -46,70 +49,83 @@ class TangentOperator:
 
     def __init__(self, assembler, model, A, rank_one=None, extra=None):
         self.assembler, self.model = assembler, model
-        self.shape = assembler.layout.dx.shape
+        L = assembler.layout
+        self.N, (nloc, self._nelems) = assembler.N, L.element_nodes.shape
+        self._ncomp, self._nqp, self._dim = L.ncomp, L.dx.shape[1], L.dim
         pairs = entries(model)
-        self._c = np.array([c for (c, _), _ in pairs])
-        self._l = np.array([l for (_, l), _ in pairs])
+        # entry k is (c, l) of the gradient: column l * ncomp + c of a point's rows
+        self._slots = np.array([l * L.ncomp + c for (c, l), _ in pairs])
         A = np.asarray(A, dtype=float)
-        n, m = int(np.prod(self.shape)), len(pairs)
+        n, m = L.dx.size, len(pairs)
         if A.shape != (n, m, m):
             raise ValueError(f"the tangent has shape {A.shape}; this solid needs "
                              f"{(n, m, m)} (points, entries, entries)")
-        self.A, self.rank_one, self.extra = A, rank_one, extra
-        self.N = assembler.N
-        self._A_sym = None
+        self.A, self.extra = A, extra
+        self._nodes = np.ascontiguousarray(L.element_nodes.T)  # (nelems, nloc)
+        self._dofs = np.ascontiguousarray(assembler.element_dofs.T)  # (nelems, nloc * c)
+        self._rank_one = None
+        if rank_one is not None:  # as (nelems, nloc, c), the layout of a cell's coefficients
+            self._rank_one = tuple(np.ascontiguousarray(f.T).reshape(self._nelems, nloc, -1)
+                                   for f in rank_one)
+        self._plans = {}
 
-    def _gradients(self, v, test):
-        """``∇v`` at the model's entries, shape (n, m)."""
-        H = self.assembler.gradient(v, test=test)
-        return H[self._c, self._l].reshape(len(self._c), -1).T
+    def _plan(self, kind):
+        """Gradient table (nelems, k * nqp * dim, nloc), weighted table
+        (nelems, nloc, k * nqp * dim), the ``k`` tangents (n, m, m) they
+        carry and the rank-one and extra terms as ``(factor, transposed)``
+        pairs, for ``kind`` "K", "KT" or "sym"."""
+        if kind in self._plans:
+            return self._plans[kind]
+        a, A = self.assembler, self.A
+        AT = A.transpose(0, 2, 1)
+        if kind == "sym" and a.same_gradients:
+            plan = (a.gradient_table(), a.weighted_table(), [0.5 * (A + AT)],
+                    [(0.5, False), (0.5, True)])
+        elif kind == "sym":
+            plan = (np.concatenate([a.gradient_table(), a.gradient_table(test=True)], axis=1),
+                    np.concatenate([a.weighted_table(), a.weighted_table(test=False)], axis=2),
+                    [0.5 * A, 0.5 * AT], [(0.5, False), (0.5, True)])
+        elif kind == "K":
+            plan = (a.gradient_table(), a.weighted_table(), [A], [(1.0, False)])
+        else:
+            plan = (a.gradient_table(test=True), a.weighted_table(test=False), [AT],
+                    [(1.0, True)])
+        self._plans[kind] = plan
+        return plan
 
-    def _scatter(self, P, test):
-        """``∫ ∇Ψ · P`` of ``P`` (n, m) at the entries, through the test
-        (``test=True``) or the trial gradients."""
-        P_ext, _ = from_entries(P, None, self.model, self.shape)
-        a = self.assembler
-        return a.scatter(a.cell_vectors(P_ext, test=test))
-
-    def _rank_one(self, v, transpose):
-        """``Σ_e u_e (w_e · v_e)`` (or ``w_e (u_e · v_e)`` transposed)."""
-        u, w = self.rank_one
-        if transpose:
-            u, w = w, u
-        local = v[self.assembler.element_dofs]  # (nloc * c, nelems)
-        return self.assembler.scatter(u * np.sum(w * local, axis=0))
-
-    def matvec(self, v, transpose=False):
-        """``K v`` (``Kᵀ v`` with ``transpose=True``)."""
-        v = np.asarray(v, dtype=float)
-        h = self._gradients(v, test=transpose)
-        A = self.A.transpose(0, 2, 1) if transpose else self.A
-        out = self._scatter(np.matmul(A, h[:, :, None])[:, :, 0], test=not transpose)
-        if self.rank_one is not None:
-            out += self._rank_one(v, transpose)
+    def _apply(self, v, kind):
+        G, W, tangents, terms = self._plan(kind)
+        v = np.asarray(v, dtype=float).ravel()
+        E, q, width = self._nelems, self._nqp, self._dim * self._ncomp
+        U = v.reshape(-1, self._ncomp)[self._nodes]  # (nelems, nloc, c)
+        H = np.matmul(G, U).reshape(E, len(tangents), q, width)
+        P = np.zeros_like(H)
+        for k, T in enumerate(tangents):
+            h = H[:, k][..., self._slots].reshape(E * q, -1, 1)
+            P[:, k][..., self._slots] = np.matmul(T, h).reshape(E, q, -1)
+        local = np.matmul(W, P.reshape(E, -1, self._ncomp))  # (nelems, nloc, c)
+        if self._rank_one is not None:
+            u, w = self._rank_one
+            for factor, transposed in terms:
+                left, right = (w, u) if transposed else (u, w)
+                local += left * (factor * np.einsum("eac,eac->e", right, U))[:, None, None]
+        out = np.bincount(self._dofs.ravel(), weights=local.ravel(), minlength=self.N)
         if self.extra is not None:
-            out += (self.extra.T if transpose else self.extra) @ v
+            for factor, transposed in terms:
+                out += factor * ((self.extra.T if transposed else self.extra) @ v)
         return out
+
+    def matvec(self, v):
+        """``K v``."""
+        return self._apply(v, "K")
 
     def rmatvec(self, v):
         """``Kᵀ v``."""
-        return self.matvec(v, transpose=True)
+        return self._apply(v, "KT")
 
     def symmetric(self, v):
-        """``½ (K + Kᵀ) v``: with equal test and trial gradients one pass
-        through ``½ (A + Aᵀ)``, else ``½ (K v + Kᵀ v)``."""
-        if not self.assembler.same_gradients:
-            return 0.5 * (self.matvec(v) + self.matvec(v, transpose=True))
-        v = np.asarray(v, dtype=float)
-        if self._A_sym is None:
-            self._A_sym = 0.5 * (self.A + self.A.transpose(0, 2, 1))
-        out = self._scatter(np.matmul(self._A_sym, self._gradients(v, False)[:, :, None])
-                            [:, :, 0], test=True)
-        if self.rank_one is not None:
-            out += 0.5 * (self._rank_one(v, False) + self._rank_one(v, True))
-        if self.extra is not None:
-            out += 0.5 * (self.extra @ v + self.extra.T @ v)
-        return out
+        """``½ (K + Kᵀ) v``."""
+        return self._apply(v, "sym")
 
     def symmetric_operator(self):
         """``½ (K + Kᵀ)`` as a scipy ``LinearOperator``."""

@@ -36,6 +36,11 @@ from ..mechanics.problem import InvertedElementError, NonFiniteError
 
 __all__ = ["CentralDifference", "EnergyRecord", "contact_frequency_bound"]
 
+#: relative accuracy of the Lanczos estimate of ω²_max (ARPACK's ``tol``)
+LANCZOS_TOLERANCE = 1e-6
+#: Lanczos vectors of an estimate (ARPACK's ``ncv``)
+LANCZOS_VECTORS = 10
+
 
 @dataclass
 class EnergyRecord:
@@ -128,7 +133,7 @@ class CentralDifference:
         self.safety, self.estimate_every = float(safety), int(estimate_every)
         self._contact_omega2 = sum(contact_frequency_bound(c, self.mass)
                                    for c in self.contacts)
-        self._mode = None
+        self._mode = self._random = None
         self._constraint = None
         if len(constraints):
             C = sp.vstack([sp.csr_matrix(c.C) for c in constraints]).tocsr()
@@ -151,20 +156,27 @@ class CentralDifference:
     def body_frequency2(self, d, state=None):
         """Largest ``ω²`` of ``M⁻¹K`` with the tangent at coefficients ``d``
         (Lanczos on ``M^(-1/2) K_sym M^(-1/2)``; the symmetric part bounds the
-        real parts of a non-symmetric tangent's eigenvalues; the first from a
-        fixed random start, so that a run repeats to the last bit, each later
-        one from the last eigenvector).
+        real parts of a non-symmetric tangent's eigenvalues).
 
         ``K_sym`` is applied without the matrix
         (:meth:`SolidProblem.tangent_operator`): a product costs about a
         force evaluation, the assembled matrix of an RK basis far more than
-        all the products of a Lanczos run.
+        all the products of a Lanczos run.  The first estimate starts from a
+        fixed random vector (ARPACK's own is random: a run would not
+        repeat); each later one from the last eigenvector plus a tenth of
+        that random vector, so that a mode the last eigenvector misses is
+        still in the start; from there ``LANCZOS_VECTORS`` vectors suffice
+        (11 products an estimate on the Taylor bar, docs/dynamics.md),
+        where ARPACK's default 20 takes 21.
         """
         evaluation = self.problem.evaluate(d, state)
         K = self.problem.tangent_operator(evaluation).symmetric_operator()
-        if self._mode is None:  # a fixed start: ARPACK's own is random, the run would not repeat
-            self._mode = np.random.default_rng(0).standard_normal(K.shape[0])
-        omega2, self._mode = scaled_largest(K, self.mass, self._mode, tol=1e-6)
+        if self._random is None:
+            r = np.random.default_rng(0).standard_normal(K.shape[0])
+            self._random = r / np.linalg.norm(r)
+        start = self._random if self._mode is None else self._mode + 0.1 * self._random
+        omega2, self._mode = scaled_largest(K, self.mass, start, tol=LANCZOS_TOLERANCE,
+                                            ncv=LANCZOS_VECTORS)
         return omega2
 
     def stable_step(self, d, state=None):

@@ -15,6 +15,11 @@ CPU of one force evaluation), the median of ``--repeat`` runs.
 tangent assembled as a sparse matrix, its symmetric part scaled and handed
 to ARPACK with its default 20 Lanczos vectors, started from the last
 eigenvector (``operator``: the default, the products without the matrix).
+The last column is the largest ratio of the step taken over an interval to
+the critical step ``2/ω`` estimated at its end (above 1: the interval ended
+above the stable step; ``CentralDifference.estimates``).  Run with
+``PYTHONPATH`` at an older checkout of the package and ``--estimate
+assembled`` to measure that code's estimates at its fixed interval.
 
 Run:  python benchmarks/explicit_step_cost.py                       (~2 min)
       python benchmarks/explicit_step_cost.py --estimate assembled operator
@@ -82,7 +87,9 @@ def one_run(method, duration, estimate):
     records = scheme.run(np.zeros(sim.problem.N), initial_velocity(sim), duration=duration)
     loop = time.process_time() - start
     steps = records[-1].step
+    over = [e.taken / e.critical for e in getattr(scheme, "estimates", []) if e.taken]
     return dict(N=sim.problem.N, steps=steps, step=loop / steps,
+                over=max(over) if over else float("nan"),
                 force=forces.seconds / forces.calls, estimates=estimates.calls,
                 estimate=estimates.seconds / estimates.calls,
                 products=products.calls / estimates.calls if products.calls else float("nan"),
@@ -102,8 +109,8 @@ def main():
           f"median of {args.repeat} runs")
     print("| method | estimate | unknowns | steps | estimates | Lanczos products / estimate | "
           "CPU ms / step | ms / force evaluation | ms / estimate | step / force | "
-          "first, last Δt µs |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "first, last Δt µs | max step taken / critical at the next estimate |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for method in args.methods:
         for estimate in args.estimate:
             runs = [one_run(method, args.duration, estimate) for _ in range(args.repeat)]
@@ -113,7 +120,8 @@ def main():
             print(f"| {method.upper()} | {estimate} | {r['N']:,} | {r['steps']} | "
                   f"{r['estimates']} | {med['products']:.0f} | {med['step'] * 1e3:.1f} | "
                   f"{med['force'] * 1e3:.1f} | {med['estimate'] * 1e3:.0f} | "
-                  f"{med['ratio']:.2f} | {r['dt'][0] * 1e6:.4f}, {r['dt'][1] * 1e6:.4f} |",
+                  f"{med['ratio']:.2f} | {r['dt'][0] * 1e6:.4f}, {r['dt'][1] * 1e6:.4f} | "
+                  f"{r['over']:.3f} |",
                   flush=True)
     print(f"load {os.getloadavg()[0]:.1f} at the end")
 

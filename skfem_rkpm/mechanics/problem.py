@@ -118,6 +118,7 @@ class SolidProblem:
         self._cols = np.array([J for _, J in self.entries])
         self._local = None  # local tangent matrices, reused by every evaluation
         self._clusters = None  # the nodal tangent by clusters of points (False: none)
+        self._operator_tables = {}  # the gradient tables of tangent_operator, kept
         self.stabilization = self._stabilization()
 
     def _stabilization(self):
@@ -306,7 +307,8 @@ class SolidProblem:
             raise ValueError("this evaluation has no tangent: evaluate(d, tangent=True)")
         A, rank_one = evaluation.tangent_parts()
         extra = None if self.stabilization is None else self.stabilization.matrix
-        return TangentOperator(self.assembler, self.model, A, rank_one, extra)
+        return TangentOperator(self.assembler, self.model, A, rank_one, extra,
+                               tables=self._operator_tables)
 
     def _tangent_matrix(self, A_ext, rank_one=None):
         """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w`` (summed

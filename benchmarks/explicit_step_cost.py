@@ -74,15 +74,6 @@ def one_run(method, duration, estimate):
         scheme.body_frequency2 = assembled_frequency2(scheme)
     forces = scheme._forces = Clock(scheme._forces)
     estimates = scheme.body_frequency2 = Clock(scheme.body_frequency2)
-    products = Clock(None)
-    if estimate == "operator":  # count the Lanczos products
-        operator_of = sim.problem.tangent_operator
-
-        def counted(evaluation):
-            op = operator_of(evaluation)
-            products.fun, op.symmetric = op.symmetric, products
-            return op
-        sim.problem.tangent_operator = counted
     start = time.process_time()
     records = scheme.run(np.zeros(sim.problem.N), initial_velocity(sim), duration=duration)
     loop = time.process_time() - start
@@ -92,7 +83,7 @@ def one_run(method, duration, estimate):
                 over=max(over) if over else float("nan"),
                 force=forces.seconds / forces.calls, estimates=estimates.calls,
                 estimate=estimates.seconds / estimates.calls,
-                products=products.calls / estimates.calls if products.calls else float("nan"),
+                products=getattr(scheme, "products", 0) / estimates.calls or float("nan"),
                 ratio=(loop / steps) / (forces.seconds / forces.calls),
                 dt=(records[0].dt, records[-1].dt))
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import LinearOperator, splu
 
 from ..mechanics.mass import lumped_mass, scaled_largest
 from ..mechanics.problem import InvertedElementError, NonFiniteError
@@ -195,7 +195,8 @@ class CentralDifference:
         self._contact_omega2 = sum(contact_frequency_bound(c, self.mass)
                                    for c in self.contacts)
         self._mode = self._random = None
-        self.estimates = []
+        self._ncv = LANCZOS_VECTORS
+        self.estimates, self.products = [], 0  # of the last run; tangent products in all
         self._constraint = None
         if len(constraints):
             C = sp.vstack([sp.csr_matrix(c.C) for c in constraints]).tocsr()
@@ -227,18 +228,31 @@ class CentralDifference:
         fixed random vector (ARPACK's own is random: a run would not
         repeat); each later one from the last eigenvector plus a tenth of
         that random vector, so that a mode the last eigenvector misses is
-        still in the start; from there ``LANCZOS_VECTORS`` vectors suffice
-        (11 products an estimate on the Taylor bar, docs/dynamics.md),
-        where ARPACK's default 20 takes 21.
+        still in the start.  From there ``LANCZOS_VECTORS`` vectors mostly
+        suffice (11 products an estimate on the 3D RKPM Taylor bar, where
+        ARPACK's default 20 takes 21); an estimate that needed a restart
+        doubles them for the next ones (FEM's clustered top of the spectrum
+        took 30 products with 10 vectors).
         """
         evaluation = self.problem.evaluate(d, state)
-        K = self.problem.tangent_operator(evaluation).symmetric_operator()
+        product = self.problem.tangent_operator(evaluation).symmetric
+        count = [0]
+
+        def counted(x):
+            count[0] += 1
+            return product(x)
+        K = LinearOperator((self.problem.N,) * 2, matvec=counted, dtype=float)
         if self._random is None:
             r = np.random.default_rng(0).standard_normal(K.shape[0])
             self._random = r / np.linalg.norm(r)
-        start = self._random if self._mode is None else self._mode + 0.1 * self._random
+        warm = self._mode is not None
+        start = self._mode + 0.1 * self._random if warm else self._random
         omega2, self._mode = scaled_largest(K, self.mass, start, tol=LANCZOS_TOLERANCE,
-                                            ncv=LANCZOS_VECTORS)
+                                            ncv=self._ncv)
+        if warm and count[0] > self._ncv + 1:
+            # restarted: more vectors next time (a clustered top of the spectrum)
+            self._ncv = min(2 * self._ncv, 4 * LANCZOS_VECTORS)
+        self.products += count[0]
         return omega2
 
     def stable_step(self, d, state=None):

@@ -231,8 +231,9 @@ class CentralDifference:
         still in the start.  From there ``LANCZOS_VECTORS`` vectors mostly
         suffice (11 products an estimate on the 3D RKPM Taylor bar, where
         ARPACK's default 20 takes 21); an estimate that needed a restart
-        doubles them for the next ones (FEM's clustered top of the spectrum
-        took 30 products with 10 vectors).
+        doubles them for the next one (FEM's clustered top of the spectrum
+        took 30 products with 10 vectors), one that did not halves them
+        again, down to ``LANCZOS_VECTORS``.
         """
         evaluation = self.problem.evaluate(d, state)
         product = self.problem.tangent_operator(evaluation).symmetric
@@ -249,9 +250,9 @@ class CentralDifference:
         start = self._mode + 0.1 * self._random if warm else self._random
         omega2, self._mode = scaled_largest(K, self.mass, start, tol=LANCZOS_TOLERANCE,
                                             ncv=self._ncv)
-        if warm and count[0] > self._ncv + 1:
-            # restarted: more vectors next time (a clustered top of the spectrum)
-            self._ncv = min(2 * self._ncv, 4 * LANCZOS_VECTORS)
+        if warm:  # restarted: twice the vectors next time, else back towards the fewest
+            self._ncv = (min(2 * self._ncv, 4 * LANCZOS_VECTORS) if count[0] > self._ncv + 1
+                         else max(self._ncv // 2, LANCZOS_VECTORS))
         self.products += count[0]
         return omega2
 

@@ -490,6 +490,13 @@ class Assembler:
         return self._cached("trial", s, lambda s: self.layout.trial_grads[:, :, s]
                             .transpose(2, 3, 0, 1))
 
+    def _test_grads(self, s):
+        """``∂_m Ñ_b`` on cells ``s``, shape (cells, nqp, dim, nloc)."""
+        if self.same_gradients:
+            return self._trial_grads(s)
+        return self._cached("test grads", s, lambda s: self.test_layout.test_grads[:, :, s]
+                            .transpose(2, 3, 0, 1))
+
     def _weighted_test_grads(self, s):
         """``∂_l Ñ_a dΩ`` on cells ``s``, shape (cells, nloc, nqp * dim)."""
         return self._cached("test", s,
@@ -581,14 +588,40 @@ class Assembler:
         W = w.T.reshape(nelems, nloc, c).transpose(0, 2, 1)[:, None, None]
         return U, W
 
-    def gradient(self, u):
-        """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp)."""
+    def gradient(self, u, test=False):
+        """``∂_m u_c`` at the quadrature points, shape (c, dim, nelems, nqp);
+        ``test=True`` takes the test gradients ``∂_m Ñ`` (VCI-corrected)."""
         self._require_square("gradient")
         L = self.layout
         U = np.asarray(u).reshape(L.nscalar, L.ncomp)[L.element_nodes]  # (nloc, nelems, c)
+        grads = self._test_grads(slice(None)) if test else self._trial_grads(slice(None))
         # H[E, q, m, c] = Σ_a ∂_m N_a [E, q, m, a] U[E, a, c]
-        H = self._trial_grads(slice(None)) @ U.transpose(1, 0, 2)[:, None]
+        H = grads @ U.transpose(1, 0, 2)[:, None]
         return H.transpose(3, 2, 0, 1)
+
+    def gradient_table(self, test=False):
+        """``∂_m N_a`` of every cell as (nelems, nqp * dim, nloc) (rows in the
+        order (q, m)); ``test=True``: the test gradients ``∂_m Ñ_a``."""
+        G = self._test_grads(slice(None)) if test else self._trial_grads(slice(None))
+        return G.reshape(G.shape[0], -1, G.shape[-1])
+
+    def weighted_table(self, test=True):
+        """``∂_l Ñ_a dΩ`` of every cell as (nelems, nloc, nqp * dim) (columns in
+        the order (q, l)); ``test=False``: the trial gradients."""
+        everything = slice(None)
+        return (self._weighted_test_grads(everything) if test
+                else self._weighted_trial_grads(everything))
+
+    @property
+    def same_gradients(self):
+        """Test and trial gradients are equal (no VCI correction): the
+        bilinear forms of a symmetric tangent are then symmetric."""
+        same = self._cache.get("same gradients")
+        if same is None:
+            L = self.layout
+            same = self._cache["same gradients"] = self.square and (
+                L.test_grads is L.trial_grads or np.array_equal(L.test_grads, L.trial_grads))
+        return same
 
 
 def facet_basis(basis, facets=None):

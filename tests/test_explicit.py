@@ -13,7 +13,7 @@ from skfem_rkpm.mechanics.materials import J2Material
 from skfem_rkpm.mechanics.problem import InvertedElementError, SolidProblem
 from skfem_rkpm.mechanics.rigid_contact import RigidContact
 from skfem_rkpm.mechanics.tools import Platen
-from skfem_rkpm.solvers.explicit import CentralDifference
+from skfem_rkpm.solvers.explicit import CentralDifference, EstimatePolicy
 
 E, RHO = 200e3, 7.85e-9  # MPa, t/mm³ (steel)
 
@@ -178,3 +178,50 @@ def test_axisymmetric_rod_on_a_wall_keeps_its_axis(method):
     scale = np.abs(records[-1].d).max()
     for r in records:  # C d = 0: round-off of the projection's solve
         assert np.abs(axis.C @ r.d).max() < 1e3 * np.finfo(float).eps * scale
+
+
+def drive(policy, omega2_at, until):
+    """Estimates of ``policy`` on ``omega2_at(step)`` up to ``until`` steps:
+    (step, ω² used, interval) of each."""
+    out, step = [], 0
+    while step < until:
+        used, n = policy.after_estimate(step, omega2_at(step))
+        out.append((step, used, n))
+        step += n
+    return out
+
+
+def test_a_constant_frequency_lengthens_the_interval_to_the_longest():
+    """ω² that does not change: intervals 5, 10, 20, 40, then 50 (twice the
+    last at most), each step from the estimate itself."""
+    runs = drive(EstimatePolicy(50), lambda step: 4.0e14, 400)
+    assert [n for _, _, n in runs[:6]] == [5, 10, 20, 40, 50, 50]
+    assert all(used == 4.0e14 for _, used, _ in runs)
+
+
+@pytest.mark.parametrize("rate", [1e-4, 3e-3, 0.05])
+def test_a_growing_frequency_is_extrapolated_to_the_next_estimate(rate):
+    """ω² = ω0² e^(r step): from the second estimate on, the ω² a step uses
+    is the value at the next estimate (to round-off), the interval
+    ln(1.1) / r steps (floored, at most 50 and twice the last); so no step
+    of the interval is above safety · 2/ω(t) at its end."""
+    omega2 = lambda step: 1e14 * np.exp(rate * step)  # noqa: E731
+    runs = drive(EstimatePolicy(50), omega2, 300)
+    for (step, used, n), (following, _, _) in zip(runs[1:], runs[2:]):
+        assert following == step + n
+        assert used == pytest.approx(omega2(following), rel=1e-12)
+        assert n <= max(1, int(np.log(1.1) / rate)) and n <= 50
+    assert max(used / omega2(step) for step, used, _ in runs) <= 1.1 * (1 + 1e-12)
+
+
+def test_an_estimate_log_shows_the_step_against_the_critical_one():
+    """A free elastic body: every estimate's critical step is 2/ω of the
+    body, and the step taken up to it is the safety times that."""
+    problem, v = free_body("fem", cells=(4, 2))
+    scheme = CentralDifference(problem, RHO, safety=0.9, estimate_every=20)
+    scheme.run(np.zeros(problem.N), 0.01 * v, duration=60 * scheme.stable_step(
+        np.zeros(problem.N)))
+    log = scheme.estimates
+    assert [e.step for e in log[:4]] == [0, 2, 6, 14]
+    for e in log[1:]:
+        assert e.taken / e.critical == pytest.approx(0.9, rel=1e-6)

@@ -141,18 +141,31 @@ def largest_eigenvalue(K, M, constrained=None):
     return float(eigs(A, k=1, which="LR", return_eigenvectors=False, tol=1e-10)[0].real)
 
 
-def scaled_largest(K, m, start=None, tol=1e-10):
+def scaled_largest(K, m, start=None, tol=1e-10, ncv=None):
     """Largest eigenvalue and its eigenvector of ``M^(-1/2) K M^(-1/2)`` for a
     symmetric ``K`` and a lumped mass ``m`` (the largest ``ω²`` of ``M⁻¹K``):
-    densely up to 600 rows, else by Lanczos started from ``start`` (the
-    best Ritz pair where it stops short of ``tol``)."""
-    scale = sp.diags(1.0 / np.sqrt(m))
-    A = (scale @ sp.csr_matrix(K) @ scale).tocsr()
+    densely up to 600 rows, else by Lanczos started from ``start`` with
+    ``ncv`` Lanczos vectors (ARPACK's default 20 if None; fewer cost fewer
+    products from a start near the answer) (the best Ritz pair where it
+    stops short of ``tol``).
+
+    ``K`` is a sparse or dense matrix or a scipy ``LinearOperator`` (e.g.
+    :meth:`~skfem_rkpm.mechanics.tangent_operator.TangentOperator.symmetric_operator`:
+    the products without the matrix).
+    """
+    scale = 1.0 / np.sqrt(m)
+    if isinstance(K, LinearOperator):
+        A = LinearOperator(K.shape, matvec=lambda x: scale * (K @ (scale * np.ravel(x))),
+                           dtype=float)
+        dense = (lambda: A @ np.eye(K.shape[0]))
+    else:
+        A = (sp.diags(scale) @ sp.csr_matrix(K) @ sp.diags(scale)).tocsr()
+        dense = A.toarray
     if A.shape[0] <= 600:
-        w, V = np.linalg.eigh(A.toarray())
+        w, V = np.linalg.eigh(dense())
         return float(w[-1]), V[:, -1]
     try:
-        w, V = eigsh(A, k=1, which="LA", v0=start, tol=tol)
+        w, V = eigsh(A, k=1, which="LA", v0=start, tol=tol, ncv=ncv)
     except ArpackNoConvergence as failure:
         w, V = failure.eigenvalues, failure.eigenvectors
     return float(w[0]), V[:, 0]

@@ -26,6 +26,7 @@ from .kinematics import (deformation_gradient, entries, from_entries,
 from .materials import MaterialState, ReturnMapError
 from .nodal_tangent import nodal_tangent
 from .stabilization import Stabilization, checked_moduli
+from .tangent_operator import TangentOperator
 
 __all__ = ["InvertedElementError", "NonFiniteError", "Evaluation", "SolidProblem"]
 
@@ -52,13 +53,18 @@ class Evaluation:
     ``f_int``, ``F``, ``P``, ``tau`` and the trial material ``state`` at the
     quadrature points, and the tangent ``K``, formed when it is first read
     (a Newton line search rejects some states, and a converged state needs
-    no tangent); ``K`` is None if the evaluation was asked for none."""
+    no tangent); ``K`` is None if the evaluation was asked for none.
+    ``tangent_parts()`` gives what ``K`` is made of, ``∂P/∂F`` at the
+    model's entries (n, m, m) and the F-bar rank-one factors (or None), for
+    products without the matrix (:meth:`SolidProblem.tangent_operator`)."""
 
-    def __init__(self, f_int, F, P, tau, state, form_tangent=None, point=None):
+    def __init__(self, f_int, F, P, tau, state, form_tangent=None, point=None,
+                 tangent_parts=None):
         self.f_int, self.F, self.P, self.tau, self.state = f_int, F, P, tau, state
         self.point = point  # the material's ReturnPoint (its tangent on demand)
         self.d = None  # the coefficients evaluated
         self._form_tangent = form_tangent
+        self.tangent_parts = tangent_parts
         self._K = None
 
     @property
@@ -112,6 +118,7 @@ class SolidProblem:
         self._cols = np.array([J for _, J in self.entries])
         self._local = None  # local tangent matrices, reused by every evaluation
         self._clusters = None  # the nodal tangent by clusters of points (False: none)
+        self._operator_tables = {}  # the gradient tables of tangent_operator, kept
         self.stabilization = self._stabilization()
 
     def _stabilization(self):
@@ -157,12 +164,16 @@ class SolidProblem:
         P_at = self._at_entries(P)
         P_ext, _ = from_entries(P_at, None, self.model, self.shape)
 
+        def parts():
+            return self._material_tangent(point), None
+
         def form_tangent():
-            A = self._material_tangent(point)
+            A, _ = parts()
             return self._tangent_matrix(from_entries(P_at, A, self.model, self.shape)[1])
 
         return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
-                          form_tangent if tangent else None, point)
+                          form_tangent if tangent else None, point,
+                          parts if tangent else None)
 
     def _stabilized(self, evaluation, d):
         """Add the stabilization force and stiffness, if any."""
@@ -236,7 +247,7 @@ class SolidProblem:
         P_at = self._at_entries(P)
         P_ext, _ = from_entries(P_at, None, self.model, self.shape)
 
-        def form_tangent():
+        def parts():
             A = self._material_tangent(point)
             FinvT = self._at_entries(Finv.transpose(0, 2, 1))
             Pbar_at = self._at_entries(Pbar)
@@ -249,16 +260,21 @@ class SolidProblem:
             A_hat += u[:, :, None] * FinvT[:, None, :]
             dP_dJbar = (gamma / Jbar)[:, None] * ((s / n)[:, None] * AF
                                                   - (1.0 - 1.0 / n) * Pbar_at)
-            _, A_ext = from_entries(P_at, A_hat, self.model, self.shape)
             dP_ext, _ = from_entries(dP_dJbar, None, self.model, self.shape)
             dJ_ext, _ = from_entries(J[:, None] * FinvT, None, self.model, self.shape)
             u = self.assembler.cell_vectors(dP_ext)
             w = (self.assembler.cell_vectors(dJ_ext, test=False)
                  / np.sum(self.assembler.layout.dx, axis=1))
-            return self._tangent_matrix(A_ext, (u, w))
+            return A_hat, (u, w)
+
+        def form_tangent():
+            A_hat, rank_one = parts()
+            _, A_ext = from_entries(P_at, A_hat, self.model, self.shape)
+            return self._tangent_matrix(A_ext, rank_one)
 
         return Evaluation(self.assembler.linear(P_ext), F, P, tau, new_state,
-                          form_tangent if tangent else None, point)
+                          form_tangent if tangent else None, point,
+                          parts if tangent else None)
 
     def _fbar(self, F, J):
         """``F̄ = F + (β^{1/n} - 1) F_M``, ``J̄_e`` per point, ``F_M``,
@@ -281,6 +297,18 @@ class SolidProblem:
         if self.locking != "fbar":
             return F
         return self._fbar(F, np.linalg.det(F))[0]
+
+    def tangent_operator(self, evaluation):
+        """The tangent of ``evaluation`` (asked with ``tangent=True``) as a
+        :class:`~skfem_rkpm.mechanics.tangent_operator.TangentOperator`:
+        products ``K v`` without the matrix, equal to ``evaluation.K @ v`` to
+        round-off (stabilization included)."""
+        if evaluation.tangent_parts is None:
+            raise ValueError("this evaluation has no tangent: evaluate(d, tangent=True)")
+        A, rank_one = evaluation.tangent_parts()
+        extra = None if self.stabilization is None else self.stabilization.matrix
+        return TangentOperator(self.assembler, self.model, A, rank_one, extra,
+                               tables=self._operator_tables)
 
     def _tangent_matrix(self, A_ext, rank_one=None):
         """Sparse tangent of ``A_ext`` plus the per-cell blocks ``u ⊗ w`` (summed

@@ -89,7 +89,8 @@ DYNAMICS_SCHEMA = {
                       "current configuration (the body's M⁻¹K and a bound of the "
                       "penalty contact)"),
     "estimate_every": Key("int", 50, check=_positive,
-                          doc="explicit: steps between two estimates of the stable step"),
+                          doc="explicit: most steps between two estimates of the stable "
+                              "step (fewer while ω_max grows fast)"),
     "time_step": Key("float", check=_positive,
                      doc="implicit (required): the time step (s), at most duration; "
                          "duration is split into equal steps no longer than it, and "

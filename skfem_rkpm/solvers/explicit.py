@@ -8,10 +8,13 @@ evaluates the internal and contact forces once and divides by ``m``, for RK
 and FEM bases alike.  The loop never enters Newton.
 
 The stable step ``2 / ω_max`` is estimated on the current configuration
-and recomputed every ``estimate_every`` steps:
+and recomputed as the body deforms (:class:`EstimatePolicy`: at most every
+``estimate_every`` steps, sooner while ``ω²`` grows fast, with the step
+taken from ``ω²`` extrapolated to the next estimate):
 
 - the body's ``ω²`` is the largest eigenvalue of ``M⁻¹K`` with the tangent
-  ``K`` of the current state (Lanczos, started from the last eigenvector);
+  ``K`` of the current state (Lanczos, started from the last eigenvector,
+  with the products of the tangent formed without its matrix);
 - the penalty contact adds at most the Gershgorin bound of
   ``Gᵀ diag(ω w) G`` over ``m`` (Weyl's inequality: the largest eigenvalue
   of a sum is at most the sum of the largest ones), computed once, as if
@@ -28,12 +31,75 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import LinearOperator, splu
 
 from ..mechanics.mass import lumped_mass, scaled_largest
 from ..mechanics.problem import InvertedElementError, NonFiniteError
 
-__all__ = ["CentralDifference", "EnergyRecord", "contact_frequency_bound"]
+__all__ = ["CentralDifference", "EnergyRecord", "EstimatePolicy", "StepEstimate",
+           "contact_frequency_bound"]
+
+#: relative accuracy of the Lanczos estimate of ω²_max (ARPACK's ``tol``)
+LANCZOS_TOLERANCE = 1e-6
+#: Lanczos vectors of an estimate (ARPACK's ``ncv``)
+LANCZOS_VECTORS = 10
+#: growth of ω²_max that the extrapolation may predict between two estimates
+GROWTH_PER_ESTIMATE = 0.1
+
+
+class EstimatePolicy:
+    """When to estimate ``ω²_max`` again, and the ``ω²`` a step uses until then.
+
+    After two estimates, ``ω²`` is taken to grow at the rate between them,
+    ``r = ln(ω²_k / ω²_(k-1)) / steps`` (no less than 0).  The next estimate
+    comes ``n = ln(1 + g) / r`` steps later (``g``: ``GROWTH_PER_ESTIMATE``),
+    at least one step, at most ``longest`` and at most twice the last
+    interval, and the steps until then use ``ω²_k e^(r n)``, the value
+    extrapolated to the next estimate (at most ``(1 + g) ω²_k``: a step at
+    most 5 % shorter).  The first interval is ``longest // 10`` steps, to
+    measure a rate.
+
+    A step ``safety · 2/ω`` stays below the critical ``2/ω(t)`` while ``ω²``
+    grows by at most ``(1 + g) / safety²`` (1.36 with 0.9 and 0.1) over an
+    interval, that is while the growth rate does not triple from one
+    interval to the next.  At an impact's onset it does, from nearly zero:
+    on the 3D Taylor bar it rose 3.8 times between the first two 10-step
+    intervals; the short first interval and the doubling limit keep the
+    step within ``(1 + g)`` of the rate then (docs/dynamics.md,
+    "The stable step").
+    """
+
+    def __init__(self, longest, growth=GROWTH_PER_ESTIMATE):
+        self.longest, self.growth = int(longest), float(growth)
+        self.last = None  # (step, ω², steps to it) of the last estimate
+
+    def after_estimate(self, step, omega2):
+        """``(ω² for the steps, steps to the next estimate)`` after an
+        estimate ``omega2`` at ``step``."""
+        if self.last is None:
+            n, rate = max(1, self.longest // 10), 0.0
+        else:
+            before, value, interval = self.last
+            rate = max(np.log(omega2 / value) / (step - before), 0.0)
+            n = self.longest if rate * self.longest <= np.log1p(self.growth) else \
+                max(1, int(np.log1p(self.growth) / rate))
+            n = min(n, 2 * interval)
+        self.last = (step, omega2, n)
+        return omega2 * np.exp(rate * n), n
+
+
+@dataclass
+class StepEstimate:
+    """An estimate of the stable step during a run (``CentralDifference.estimates``):
+    the step and time, the body's ``ω²_max``, the critical step
+    ``2 / sqrt(ω²_body + ω²_contact)`` and the step taken up to here (0 at
+    the first); ``taken / critical`` above 1 means the last interval ran
+    above the stable step at its end."""
+    step: int
+    time: float
+    omega2: float
+    critical: float
+    taken: float
 
 
 @dataclass
@@ -98,7 +164,8 @@ class CentralDifference:
     safety : float
         The step is ``safety · 2 / ω_max``.
     estimate_every : int
-        Steps between two estimates of ``ω_max`` on the current configuration.
+        Most steps between two estimates of ``ω_max`` on the current
+        configuration (:class:`EstimatePolicy`: fewer while it grows fast).
     mass : ndarray, optional
         A lumped mass of the problem's coefficients (default: the row sums).
     constraints : sequence of Constraint
@@ -127,7 +194,9 @@ class CentralDifference:
         self.safety, self.estimate_every = float(safety), int(estimate_every)
         self._contact_omega2 = sum(contact_frequency_bound(c, self.mass)
                                    for c in self.contacts)
-        self._mode = None
+        self._mode = self._random = None
+        self._ncv = LANCZOS_VECTORS
+        self.estimates, self.products = [], 0  # of the last run; tangent products in all
         self._constraint = None
         if len(constraints):
             C = sp.vstack([sp.csr_matrix(c.C) for c in constraints]).tocsr()
@@ -150,12 +219,41 @@ class CentralDifference:
     def body_frequency2(self, d, state=None):
         """Largest ``ω²`` of ``M⁻¹K`` with the tangent at coefficients ``d``
         (Lanczos on ``M^(-1/2) K_sym M^(-1/2)``; the symmetric part bounds the
-        real parts of a non-symmetric tangent's eigenvalues; the first from a
-        fixed random start, so that a run repeats to the last bit)."""
-        K = sp.csr_matrix(self.problem.evaluate(d, state).K)
-        if self._mode is None:  # a fixed start: ARPACK's own is random, the run would not repeat
-            self._mode = np.random.default_rng(0).standard_normal(K.shape[0])
-        omega2, self._mode = scaled_largest(0.5 * (K + K.T), self.mass, self._mode, tol=1e-6)
+        real parts of a non-symmetric tangent's eigenvalues).
+
+        ``K_sym`` is applied without the matrix
+        (:meth:`SolidProblem.tangent_operator`): a product costs about a
+        force evaluation, the assembled matrix of an RK basis far more than
+        all the products of a Lanczos run.  The first estimate starts from a
+        fixed random vector (ARPACK's own is random: a run would not
+        repeat); each later one from the last eigenvector plus a tenth of
+        that random vector, so that a mode the last eigenvector misses is
+        still in the start.  From there ``LANCZOS_VECTORS`` vectors mostly
+        suffice (11 products an estimate on the 3D RKPM Taylor bar, where
+        ARPACK's default 20 takes 21); an estimate that needed a restart
+        doubles them for the next one (FEM's clustered top of the spectrum
+        took 30 products with 10 vectors), one that did not halves them
+        again, down to ``LANCZOS_VECTORS``.
+        """
+        evaluation = self.problem.evaluate(d, state)
+        product = self.problem.tangent_operator(evaluation).symmetric
+        count = [0]
+
+        def counted(x):
+            count[0] += 1
+            return product(x)
+        K = LinearOperator((self.problem.N,) * 2, matvec=counted, dtype=float)
+        if self._random is None:
+            r = np.random.default_rng(0).standard_normal(K.shape[0])
+            self._random = r / np.linalg.norm(r)
+        warm = self._mode is not None
+        start = self._mode + 0.1 * self._random if warm else self._random
+        omega2, self._mode = scaled_largest(K, self.mass, start, tol=LANCZOS_TOLERANCE,
+                                            ncv=self._ncv)
+        if warm:  # restarted: twice the vectors next time, else back towards the fewest
+            self._ncv = (min(2 * self._ncv, 4 * LANCZOS_VECTORS) if count[0] > self._ncv + 1
+                         else max(self._ncv // 2, LANCZOS_VECTORS))
+        self.products += count[0]
         return omega2
 
     def stable_step(self, d, state=None):
@@ -181,8 +279,8 @@ class CentralDifference:
         """Integrate from coefficients ``d`` and velocities ``v`` over
         ``duration`` seconds.
 
-        ``dt`` fixes the step (default: the stable step, re-estimated every
-        ``estimate_every`` steps).  ``external(time)`` gives the external
+        ``dt`` fixes the step (default: the stable step, re-estimated as
+        :class:`EstimatePolicy` says).  ``external(time)`` gives the external
         force vector (default none).  Returns the :class:`EnergyRecord` list
         at the start, every ``output_interval`` (default: the end only) and
         the end; ``on_output(record)`` sees each one as it is made.  A step
@@ -199,7 +297,18 @@ class CentralDifference:
         a = self.project((fe - f_int - f_c) / m)
         W_int = W_c = W_ext = 0.0
         records, next_output = [], 0.0
-        h = dt if dt is not None else self.stable_step(d)
+        policy, h = EstimatePolicy(self.estimate_every), None
+        self.estimates = []  # the StepEstimate of each estimate of this run
+
+        def estimate():
+            body = self.body_frequency2(d)
+            omega2, n = policy.after_estimate(step, body)
+            critical = 2.0 / np.sqrt(body + self._contact_omega2)
+            self.estimates.append(StepEstimate(step, time, body, critical,
+                                               h if self.estimates else 0.0))
+            return self.safety * 2.0 / np.sqrt(omega2 + self._contact_omega2), step + n
+
+        h, next_estimate = (dt, None) if dt is not None else estimate()
         h_last = h
 
         def record():
@@ -215,8 +324,8 @@ class CentralDifference:
                 on_output(out)
 
         while True:
-            if dt is None and step and step % self.estimate_every == 0:
-                h = self.stable_step(d)
+            if step == next_estimate and step:
+                h, next_estimate = estimate()
             end = time >= duration * (1.0 - 1e-12)
             if end or time >= next_output * (1.0 - 1e-12):
                 record()

@@ -28,7 +28,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 from ..approximation.constraints import transformation
 from .backend import _canonical
 from .linear import Auto, DenseLU, NotPositiveDefinite, SuperLU, make_solver
-from .nullspace import KEPT, _fingerprint, _unchanged, for_rows
+from .nullspace import for_rows, kept_for_rows
 from .reuse import Reusing, saddle_point as _reused_saddle_point
 
 __all__ = ["solve", "solve_constrained", "linear_solve", "solve_saddle_point"]
@@ -355,17 +355,7 @@ def _gram(given, C):
     passes one matrix of conditions to every solve; 25 ms a tangent for the
     ring sector's 464 rows), as :func:`~skfem_rkpm.solvers.nullspace.for_rows`
     keeps its null spaces."""
-    _GRAMS[:] = [entry for entry in _GRAMS if entry[0]() is not None]
-    for rows, data, gram in _GRAMS:
-        if rows() is given and _unchanged(C, data):
-            return gram
-    gram = sp.csr_matrix(C.T @ C)
-    try:
-        _GRAMS.insert(0, (weakref.ref(given), _fingerprint(C), gram))
-    except TypeError:  # not weakly referable: not kept
-        return gram
-    del _GRAMS[KEPT:]
-    return gram
+    return kept_for_rows(_GRAMS, given, C, lambda rows: sp.csr_matrix(rows.T @ rows))
 
 
 def _saddle_matrix(K, C, dense=False):

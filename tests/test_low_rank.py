@@ -115,3 +115,40 @@ def test_other_systems_are_factored_anew():
         assert solver.current.stats["factorizations"] == count + 1
         d_ref, _ = solve_constrained(K + dK, f, C, g)
         assert np.abs(d - d_ref).max() <= 2 * FACTOR * EPS * 1e3 * np.abs(d_ref).max()
+
+
+@pytest.mark.parametrize("scale", [1e2, 1e8])
+def test_updated_augmented_lagrangian_solve_equals_factoring_the_changed_tangent(scale):
+    """Conditions that SuperLU meets by the augmented Lagrangian (sparse
+    ``K``, rows that are neither a selection nor small enough for dense
+    LU): the factors of ``K + ρCᵀC`` solve the changed system by the
+    formula on ``K + ρCᵀC + ΔK``, and no factorization is done.  Both
+    answers are refined until their backward error in the changed system is
+    at most ``ACCEPTED_BACKWARD_ERROR`` (1e-12 sought), so they differ by at
+    most twice :func:`constrained_solve_bound` with that backward error."""
+    from skfem_rkpm.solvers.constrained import ACCEPTED_BACKWARD_ERROR, AugmentedFactored
+    rng = np.random.default_rng(7)
+    n = 800  # above the dense limit: SuperLU
+    K = _tangent(rng, n)
+    C, g = _conditions(rng, n, "general")
+    f = rng.uniform(-1, 1, n) * 1e3
+    dK = _change(rng, n, np.array([4, 5, 6, 40, 41, 90, 500]), scale * 1e3)
+    solver = make_solver("auto")
+    solve_constrained(K, rng.uniform(-1, 1, n), C, g, solver=solver)
+    assert isinstance(solver.factored, AugmentedFactored) and solver.factored.holds(K, C)
+    backend = solver.current
+    count, solves = backend.stats["factorizations"], backend.stats["solves"]
+    d, lam = solve_updated(K, dK, f, C, g, solver)
+    assert backend.stats["factorizations"] == count  # nothing factored again
+    assert backend.stats["solves"] > solves
+    d_ref, lam_ref = solve_constrained(K + dK, f, C, g, solver=make_solver("auto"))
+    accepted = ACCEPTED_BACKWARD_ERROR / EPS
+    assert_within(d, d_ref, 2 * constrained_solve_bound(K + dK, f, C, g, factor=accepted))
+    A = K + dK
+    residual = np.abs(A @ d - f - C.T @ lam).max()
+    size = (_norm(A) * np.abs(d).max() + _norm(C.T) * np.abs(lam).max() + np.abs(f).max())
+    assert residual <= ACCEPTED_BACKWARD_ERROR * size
+    assert np.abs(C @ d - g).max() <= ACCEPTED_BACKWARD_ERROR * (
+        _norm(C) * np.abs(d).max() + np.abs(g).max())
+    d_old, lam_old = solve_constrained(K, f, C, g)
+    assert np.abs(A @ d_old - f - C.T @ lam_old).max() > 1e3 * ACCEPTED_BACKWARD_ERROR * size

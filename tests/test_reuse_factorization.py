@@ -63,6 +63,28 @@ def test_newton_tolerance_sets_the_linear_one():
         make_solver("auto", reuse_factorization="yes")
 
 
+def test_auto_reuses_below_the_order_limit_from_the_entries_limit():
+    """``auto`` reuses the factorization of matrices of fewer than
+    ``REUSE_LIMIT`` unknowns when they have at least ``REUSE_ENTRIES``
+    stored entries (here the 525 x 525 Hex1 tangent, 30,000 entries, against
+    a limit set just above and just below them); the reused solve meets the
+    GMRES tolerance."""
+    from skfem_rkpm.solvers import reuse
+    K0, K1, b = _tangents()
+    for limit, reused in ((K1.nnz + 1, 0), (K0.nnz, 1)):
+        solver = reuse.reusing(SuperLU(), "auto", "superlu")
+        assert K0.shape[0] < solver.min_size == reuse.REUSE_LIMIT
+        solver.min_entries = limit
+        solver.follow_newton(1e-4)
+        solver.factor(K0)
+        x = solver.factor(K1).solve(b)
+        assert solver.stats["reused"] == reused
+        assert solver.stats["factorizations"] == 2 - reused
+        assert np.linalg.norm(b - K1 @ x) <= solver.rtol * np.linalg.norm(b)
+    assert reuse.reusing(SuperLU(), "auto", "superlu").min_entries == reuse.REUSE_ENTRIES
+    assert reuse.reusing(SuperLU(), "on", "superlu").min_size == 0
+
+
 def test_stalled_gmres_refactors_and_counts_it():
     """A cap of 2 GMRES iterations on a matrix 2 % off the factored one:
     GMRES stalls, the matrix is factored after all (a fallback) and solved

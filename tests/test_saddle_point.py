@@ -302,3 +302,22 @@ def test_newton_run_with_the_null_space_is_the_same(scene, method, settings):
         for key, force in ra.reactions.items():
             assert np.abs(np.asarray(rb.reactions[key]) - force).max() <= 1e-9 * largest
     assert rel(a.d, b.d) < 1e-9
+
+
+def test_gram_of_the_conditions_is_kept_while_they_are_unchanged():
+    """``CᵀC`` of the augmented Lagrangian is formed once per set of rows:
+    the kept matrix is the product itself (same entries, bit for bit), it is
+    formed again when the rows change in place, and other rows get their
+    own."""
+    from skfem_rkpm.solvers.constrained import _gram
+    rng = np.random.default_rng(2)
+    C = sp.random(30, 200, density=0.05, format="csr", random_state=rng)
+    first = _gram(C, sp.csr_matrix(C))
+    expected = sp.csr_matrix(C.T @ C)
+    assert (first != expected).nnz == 0
+    assert _gram(C, sp.csr_matrix(C)) is first
+    C.data[0] *= 2.0  # changed in place: formed again
+    again = _gram(C, sp.csr_matrix(C))
+    assert again is not first and (again != sp.csr_matrix(C.T @ C)).nnz == 0
+    other = sp.random(30, 200, density=0.05, format="csr", random_state=rng)
+    assert (_gram(other, other) != sp.csr_matrix(other.T @ other)).nnz == 0

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..solvers.backend import BACKENDS
-from ..solvers.reuse import REUSE_LIMIT, REUSE_MODES
+from ..solvers.reuse import REUSE_ENTRIES, REUSE_LIMIT, REUSE_MODES
 from .scene_dynamics import DENSITY, OPTIONAL_SECTIONS, check_dynamics
 from .scene_geometry import check_components, check_geometry, mesh_from, model_dimension
 from .scene_tools import TOOL_SCHEMA, check_tool
@@ -218,7 +218,8 @@ SCHEMA = {
                                    doc="keep the last factorization and solve the next "
                                        "tangents by GMRES preconditioned by it, factoring "
                                        "again when GMRES stalls (skfem_rkpm.solvers.reuse); "
-                                       f"auto: from {REUSE_LIMIT} unknowns on"),
+                                       f"auto: from {REUSE_LIMIT} unknowns or "
+                                       f"{REUSE_ENTRIES:,} matrix entries on"),
     },
     **OPTIONAL_SECTIONS,
     "output": {

@@ -20,6 +20,7 @@ nodal values directly.  The rows ``C`` come from
 import weakref
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.linalg import LinearOperator, gmres
@@ -27,7 +28,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 from ..approximation.constraints import transformation
 from .backend import _canonical
 from .linear import Auto, DenseLU, NotPositiveDefinite, SuperLU, make_solver
-from .nullspace import for_rows
+from .nullspace import for_rows, kept_for_rows
 from .reuse import Reusing, saddle_point as _reused_saddle_point
 
 __all__ = ["solve", "solve_constrained", "linear_solve", "solve_saddle_point"]
@@ -187,7 +188,7 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
         if solution is not None:
             solver.factored = Factored(given, C, K, solver, solver.null_space)
             return solution
-    C = sp.csr_matrix(C)
+    given_C, C = C, sp.csr_matrix(C)
     backend = solver
     if isinstance(solver, Auto):
         name = solver.choose(sp.csr_matrix((N + m, N + m)))
@@ -197,11 +198,15 @@ def solve_saddle_point(solver, K, f, C, g, rtol=1e-12, maxiter=200):
     direct = backend.inner if isinstance(backend, Reusing) else backend
     if backend.spd_only or isinstance(direct, SuperLU):
         rho = _penalty(K, C)
-        Krho = _canonical(K + rho * (C.T @ C))
+        Krho = _canonical(K + rho * _gram(given_C, C))
         solution = _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol,
                                          maxiter)
         if solution is not None:
             solver.system = "K + ρCᵀC (constraints by the augmented Lagrangian)"
+            factors = getattr(solver, "current", None) if isinstance(solver, Auto) else solver
+            if solver.A is Krho and not getattr(factors, "stale", False):
+                solver.factored = AugmentedFactored(given, given_C, K, solver, factors,
+                                                    (rho, C, rtol, maxiter))
             return solution
         backend = solver.backend("superlu") if isinstance(solver, Auto) else backend
     A = _saddle_matrix(K, C, dense=isinstance(direct, DenseLU))
@@ -280,6 +285,77 @@ class Factored:
             return self.solver.solve(f), np.zeros((0,) + f.shape[1:])
         return _eliminated_solve(self.solver, self.elimination, self.canonical, f,
                                  self.elimination.particular(g))
+
+
+class AugmentedFactored(Factored):
+    """The factors of ``K_ρ = K + ρ CᵀC`` that the augmented Lagrangian of
+    :func:`solve_saddle_point` solved with last (``solver.factored``): they
+    solve the system again for new right-hand sides, and that of ``K + ΔK``
+    with ``ΔK`` nonzero in a few rows (:meth:`solve_changed`).
+    ``factors`` is the backend holding them; ``augmented`` is ``(ρ, C
+    (CSR), rtol, maxiter)`` of the solve."""
+
+    def __init__(self, K, C, canonical, solver, factors, augmented):
+        super().__init__(K, C, canonical, solver, None)
+        self.factors = factors
+        self.rho, self.rows, self.rtol, self.maxiter = augmented
+
+    def solve(self, f, g, apply=None, K=None):
+        """``d, λ`` of ``K d = f + Cᵀ λ``, ``C d = g`` by the augmented
+        Lagrangian (:func:`_refined_solve`, to the same backward error as
+        the first solve) with ``apply`` for ``K_ρ⁻¹`` (default: the
+        factors) and the system's ``K`` (default: the one factored).
+        Raises LinAlgError where the backward error is not reached."""
+        f, g = np.asarray(f, dtype=float), np.asarray(g, dtype=float)
+        apply = self.factors.solve if apply is None else apply
+        K = self.canonical if K is None else K
+        columns = [(f, g)] if f.ndim == 1 else [(f[:, j], g[:, j])
+                                                for j in range(f.shape[1])]
+        pairs = [_refined_solve(apply, K, self.rho, fj, self.rows, gj, self.rtol,
+                                self.maxiter) for fj, gj in columns]
+        if f.ndim == 1:
+            return pairs[0]
+        return (np.column_stack([p[0] for p in pairs]),
+                np.column_stack([p[1] for p in pairs]))
+
+    def solve_changed(self, dK, rows, f, g):
+        """``d, λ`` of ``(K + ΔK) d = f + Cᵀ λ``, ``C d = g`` with ``ΔK``
+        (CSR) nonzero only in ``rows``: ``K_ρ + ΔK`` is the augmented matrix
+        of the changed system, and its inverse is applied from the factors
+        of ``K_ρ`` by the Sherman-Morrison-Woodbury formula,
+        ``(K_ρ + E M)⁻¹ b = y - X (I + M X)⁻¹ M y`` with ``y = K_ρ⁻¹ b``,
+        ``X = K_ρ⁻¹ E`` (one solve with ``len(rows)`` columns) and ``M =
+        ΔK[rows]``.  The refined solve measures its backward error in the
+        changed system itself, so the answer meets the bound a
+        factorization of ``K_ρ + ΔK`` would; raises LinAlgError where it
+        does not (then factor the changed system)."""
+        if not len(rows):
+            return self.solve(f, g)
+        N, s = self.canonical.shape[0], len(rows)
+        M = dK[rows]
+        E = np.zeros((N, s))
+        E[rows, np.arange(s)] = 1.0
+        X = self.factors.solve(E)
+        capacitance = scipy.linalg.lu_factor(np.eye(s) + M @ X, check_finite=False)
+
+        def apply(b):
+            y = self.factors.solve(b)
+            return y - X @ scipy.linalg.lu_solve(capacitance, M @ y, check_finite=False)
+
+        return self.solve(f, g, apply, self.canonical + dK)
+
+
+#: ``CᵀC`` of the last sets of rows given to :func:`_gram`
+_GRAMS = []
+
+
+def _gram(given, C):
+    """``CᵀC`` (CSR) of the rows ``C``, ``given`` the object they came in:
+    formed once while the same unchanged rows come again (a Newton run
+    passes one matrix of conditions to every solve; 25 ms a tangent for the
+    ring sector's 464 rows), as :func:`~skfem_rkpm.solvers.nullspace.for_rows`
+    keeps its null spaces."""
+    return kept_for_rows(_GRAMS, given, C, lambda rows: sp.csr_matrix(rows.T @ rows))
 
 
 def _saddle_matrix(K, C, dense=False):

@@ -571,7 +571,8 @@ def make_solver(name="auto", symmetric=None, reuse_factorization="off", **option
         Keep the last factorization and solve the next matrices by GMRES
         preconditioned by it, factoring again only when GMRES stalls
         (:mod:`skfem_rkpm.solvers.reuse`); ``"auto"`` from
-        :data:`~skfem_rkpm.solvers.reuse.REUSE_LIMIT` unknowns on.  Sparse
+        :data:`~skfem_rkpm.solvers.reuse.REUSE_LIMIT` unknowns or
+        :data:`~skfem_rkpm.solvers.reuse.REUSE_ENTRIES` stored entries on.  Sparse
         direct backends only (``superlu``, ``pardiso``, ``umfpack``,
         ``cholmod``, and those ``auto`` picks).
     **options

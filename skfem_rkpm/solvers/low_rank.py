@@ -56,6 +56,11 @@ def solve_updated(K, dK, f, C, g, solver, refinements=2):
             or len(rows) > 0.05 * N):
         return solve_constrained(K + dK, f, C, g, solver=solver)
     f, g = np.asarray(f, dtype=float), np.asarray(g, dtype=float)
+    if hasattr(record, "solve_changed"):  # the factors of K + ρCᵀC (augmented Lagrangian)
+        try:
+            return record.solve_changed(dK, rows, f, g)
+        except np.linalg.LinAlgError:
+            return solve_constrained(K + dK, f, C, g, solver=solver)
     if not len(rows):
         return record.solve(f, g)
     s = len(rows)

@@ -193,17 +193,24 @@ def for_rows(C):
     again: a Newton run passes one matrix of conditions to every solve,
     also where each solve makes its own solver.  The rows are known by the
     object (a weak reference) and checked to be unchanged."""
-    _KEPT[:] = [entry for entry in _KEPT if entry[0]() is not None]  # rows gone: freed
-    for rows, data, elimination in _KEPT:
-        if rows() is C and _unchanged(C, data):
-            return elimination
-    elimination = null_space(C)
+    return kept_for_rows(_KEPT, C, C, null_space)
+
+
+def kept_for_rows(store, given, C, make):
+    """``make(C)``, kept in ``store`` (a list, at most ``KEPT`` entries)
+    while the same object ``given`` comes again with the rows ``C``
+    unchanged; known by a weak reference, so the rows' own lifetime frees it."""
+    store[:] = [entry for entry in store if entry[0]() is not None]  # rows gone: freed
+    for rows, data, value in store:
+        if rows() is given and _unchanged(C, data):
+            return value
+    value = make(C)
     try:
-        _KEPT.insert(0, (weakref.ref(C), _fingerprint(C), elimination))
+        store.insert(0, (weakref.ref(given), _fingerprint(C), value))
     except TypeError:  # not weakly referable: not kept
-        return elimination
-    del _KEPT[KEPT:]
-    return elimination
+        return value
+    del store[KEPT:]
+    return value
 
 
 def _fingerprint(C):

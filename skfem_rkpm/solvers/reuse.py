@@ -36,12 +36,13 @@ from scipy.sparse.linalg import LinearOperator, gmres, splu
 
 from .backend import Solver, _canonical
 
-__all__ = ["Reusing", "reusing", "REUSE_MODES", "REUSE_LIMIT", "NEWTON_FRACTION",
+__all__ = ["Reusing", "reusing", "REUSE_MODES", "REUSE_LIMIT", "REUSE_ENTRIES",
+           "NEWTON_FRACTION",
            "MAX_ITERATIONS", "preconditioned_gmres", "saddle_point"]
 
 #: ``reuse_factorization``: ``"off"`` (factor every matrix), ``"on"`` (reuse
 #: the last factorization at every size), ``"auto"`` (from :data:`REUSE_LIMIT`
-#: unknowns on)
+#: unknowns or :data:`REUSE_ENTRIES` stored entries on)
 REUSE_MODES = ("off", "on", "auto")
 
 #: ``"auto"`` reuses the last factorization for matrices of at least this
@@ -51,6 +52,19 @@ REUSE_MODES = ("off", "on", "auto")
 #: 4.8 against 5.9 s per tangent, at 42,075 (FEM, first 4 tangents) 21.1
 #: against 24.5 s per tangent (docs/forming_3d.md)
 REUSE_LIMIT = 5000
+
+#: ``"auto"`` also reuses it for smaller matrices with at least this many
+#: stored entries: what a factorization costs against a GMRES iteration
+#: grows with the entries per row, not with the order alone.  The RK
+#: tangents in 3D have about 600 a row (FEM Hex1 at most 81): the ring
+#: sector's ``K + ρCᵀC`` (3,696 unknowns, 2.27 M entries) factors in 1.1-1.5
+#: s against 12 ms for a solve with the factors, about 70 GMRES iterations
+#: (FEM at 5,476 unknowns, where reuse pays: 17), and reuse pays there
+#: (docs/forming_3d.md, "The ring sector's linear solves").  The thin sheet
+#: of ``stretch_3d`` (3,969 unknowns, 1.15 M entries in ``K``), whose
+#: conditions need 80-90 GMRES iterations on the multipliers even with
+#: exact factors, is not measured with reuse and stays below the limit.
+REUSE_ENTRIES = 2_000_000
 
 #: the linear relative residual over the Newton tolerance
 NEWTON_FRACTION = 1e-3
@@ -97,16 +111,18 @@ class Reusing(Solver):
     """A direct backend ``inner`` whose last factorization serves the next
     matrices through GMRES (see the module docstring).
 
-    ``min_size``: smaller matrices are factored every time.  ``stats`` adds
+    ``min_size``: smaller matrices are factored every time, unless they have
+    at least ``min_entries`` stored entries (0: no such exception).  ``stats`` adds
     ``reused`` (matrices not factored), ``gmres_iterations`` and
     ``fallbacks`` (reused matrices factored after all because GMRES stalled)
     to the counts of ``inner.stats`` (its ``factorizations`` are all the
     factorizations done).
     """
 
-    def __init__(self, inner, min_size=0, rtol=1e-9, maxiter=MAX_ITERATIONS):
+    def __init__(self, inner, min_size=0, rtol=1e-9, maxiter=MAX_ITERATIONS, min_entries=0):
         super().__init__(inner.symmetric, **inner.options)
         self.inner, self.min_size, self.rtol, self.maxiter = inner, min_size, rtol, maxiter
+        self.min_entries = min_entries
         self.name = inner.name
         self.stale = self.refresh = False
         self.stats = inner.stats
@@ -123,13 +139,14 @@ class Reusing(Solver):
 
     def factor(self, A, reuse=True):
         """Keep ``A``; factor it only when there is no factorization of a
-        matrix of its order to reuse, it is below ``min_size`` or ``reuse`` is
-        False."""
+        matrix of its order to reuse, it is below ``min_size`` (and has fewer
+        than ``min_entries`` entries) or ``reuse`` is False."""
         A = _canonical(A)
         kept = self.inner.A
         if self.refresh:  # the last reused solve was slow: a new preconditioner
             reuse, self.refresh = False, False
-        if reuse and kept is not None and kept.shape == A.shape and A.shape[0] >= self.min_size:
+        large = A.shape[0] >= self.min_size or 0 < self.min_entries <= A.nnz
+        if reuse and kept is not None and kept.shape == A.shape and large:
             self.A, self.stale = A, True
             self.stats["reused"] += 1
             return self
@@ -193,7 +210,9 @@ class Reusing(Solver):
     def describe(self):
         return (f"{self.inner.describe()}; the last factorization reused by GMRES "
                 f"(relative residual {self.rtol:.0e}, at most {self.maxiter} iterations)"
-                + (f" from {self.min_size} unknowns on" if self.min_size else ""))
+                + (f" from {self.min_size} unknowns" if self.min_size else "")
+                + (f" or {self.min_entries:,} entries" if self.min_entries else "")
+                + (" on" if self.min_size or self.min_entries else ""))
 
 
 def reusing(inner, mode, name):
@@ -205,7 +224,9 @@ def reusing(inner, mode, name):
                          f"not {mode!r}")
     if mode == "off" or name not in REUSABLE:
         return inner
-    return Reusing(inner, min_size=REUSE_LIMIT if mode == "auto" else 0)
+    if mode == "auto":
+        return Reusing(inner, min_size=REUSE_LIMIT, min_entries=REUSE_ENTRIES)
+    return Reusing(inner)
 
 
 def saddle_point(backend, K, rho, f, C, g):

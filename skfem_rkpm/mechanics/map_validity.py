@@ -139,7 +139,8 @@ class MapSampler:
             self._scalar = None
             if isinstance(basis.elem, ElementVector) and basis.elem.dim == self.dim:
                 scalar = type(basis)(mesh, basis.elem.elem, quadrature=(ref, weights))
-                self._scalar = [scalar.basis[j][0] for j in range(scalar.Nbfun)]
+                self._scalar = [(np.array(scalar.basis[j][0]), np.array(scalar.basis[j][0].grad))
+                                for j in range(scalar.Nbfun)]  # values, gradients
                 # the vector dof of scalar function j, component i: row dim * j + i
                 # (ElementVector numbers them so); the vector basis of all cells
                 self._dofs = type(basis)(mesh, basis.elem, quadrature=(
@@ -158,11 +159,11 @@ class MapSampler:
         if self._scalar is not None:  # Σ_j d_(j, i) φ_j, φ_j in the order of interpolate
             n = self.X[0].size
             u, grad = np.zeros((c,) + self.X.shape[1:]), np.zeros((c, c) + self.X.shape[1:])
-            for j, phi in enumerate(self._scalar):
+            for j, (phi, dphi) in enumerate(self._scalar):
                 for i in range(c):
                     values = d[self._dofs[c * j + i]][:, None]
-                    u[i] += values * phi.value
-                    grad[i] += values * phi.grad
+                    u[i] += values * phi
+                    grad[i] += values * dphi
             return u.reshape(c, n), grad.reshape(c, c, n)
         field = self._fem.interpolate(d)
         return (np.asarray(field).reshape(c, -1),
@@ -172,14 +173,16 @@ class MapSampler:
         """``det F`` at the samples, shape (ncells, samples per cell), and
         the displacements there (dim, ncells, samples per cell)."""
         u, grad = self._fields(d)
-        n = u.shape[1]
-        F = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-        F[:, :self.dim, :self.dim] += np.moveaxis(grad, -1, 0)
+        # F = I + ∂u/∂X entry by entry, each entry an array over the samples
+        F = np.zeros((3, 3, u.shape[1]))
+        F[:self.dim, :self.dim] = grad
+        for i in range(3):
+            F[i, i] += 1.0
         if self.model == "axisymmetric":
             R = self.X[0].ravel()
             on_axis = np.abs(R) <= 1e-12 * max(np.abs(R).max(), 1.0)
             with np.errstate(divide="ignore", invalid="ignore"):
-                F[:, 2, 2] = np.where(on_axis, F[:, 0, 0], 1.0 + u[0] / R)
+                F[2, 2] = np.where(on_axis, F[0, 0], 1.0 + u[0] / R)
         J = _determinant(F)
         return J.reshape(self.ncells, self.per_cell), u.reshape(self.X.shape)
 
@@ -195,11 +198,10 @@ class MapSampler:
                            kind=self.kind)
 
 
-def _determinant(F):
-    """``det F`` of 3x3 matrices (n, 3, 3), expanded along the first row with
-    the cofactors of :func:`~skfem_rkpm.mechanics.kinematics.inverse_and_determinant`
+def _determinant(f):
+    """``det F`` of 3x3 matrices ``f`` (3, 3, n), expanded along the first row
+    with the cofactors of :func:`~skfem_rkpm.mechanics.kinematics.inverse_and_determinant`
     (the same operations, so the same values), without the inverse."""
-    f = F.transpose(1, 2, 0)
     return (f[0, 0] * (f[1, 1] * f[2, 2] - f[1, 2] * f[2, 1])
             + f[0, 1] * (f[1, 2] * f[2, 0] - f[1, 0] * f[2, 2])
             + f[0, 2] * (f[1, 0] * f[2, 1] - f[1, 1] * f[2, 0]))

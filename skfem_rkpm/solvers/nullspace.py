@@ -115,8 +115,8 @@ class NullSpace:
         """``K[I][:, I]``: the entries of ``K`` it picks are found once per
         sparsity pattern of ``K`` (by picking the entry numbers of a copy of
         the pattern) and then copied, which gives the same matrix as the
-        fancy indexing (the same entries in the same places) in a tenth of
-        its time (FEM billet_3d: 945 unknowns)."""
+        fancy indexing (the same entries in the same places) in a third of
+        its time (FEM billet_3d, 945 unknowns: 0.14 against 0.46 ms)."""
         kept = self._selected
         if not (kept is not None and np.array_equal(kept[0], K.indptr)
                 and np.array_equal(kept[1], K.indices)):

@@ -26,18 +26,24 @@ _MEASURE = ("import resource, subprocess, sys; "
             "print(r.ru_utime + r.ru_stime, r.ru_maxrss, code)")
 
 
-def run_scene(scene, method, settings, folder, limit=0.0):
+def run_scene(scene, method, settings, folder, limit=0.0, source=None):
     """CPU seconds, peak memory (MB) and exit status of one whole run of
     ``scene`` (fields and figures not written) with ``--set`` ``settings``;
-    ``limit``: seconds after which the run is stopped (0: none)."""
+    ``limit``: seconds after which the run is stopped (0: none); ``source``:
+    a folder holding another version's ``skfem_rkpm`` package to run instead
+    (e.g. ``git archive COMMIT skfem_rkpm | tar -x -C DIR``)."""
     command = [sys.executable, "-m", "skfem_rkpm.runs.cli", "run", scene, "--quiet",
-               "--method", method, "--out", str(folder),
+               "--method", method, "--out", str(Path(folder).resolve()),
                "--set", "output.fields=false", "--set", "output.figures=false"]
     for setting in settings:
         command += ["--set", setting]
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
+    cwd = None
+    if source is not None:  # `python -m` finds the package in the working folder
+        cwd = env["PYTHONPATH"] = str(Path(source).resolve())
     out = subprocess.run([sys.executable, "-c", _MEASURE, str(limit), *command], env=env,
-                         capture_output=True, text=True, check=True).stdout.split()
+                         cwd=cwd, capture_output=True, text=True,
+                         check=True).stdout.split()
     return float(out[0]), float(out[1]) / 1024.0, int(out[2])
 
 

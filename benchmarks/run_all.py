@@ -70,6 +70,7 @@ SUITE = {
     "saddle_point": ([], ["--scene", "billet_3d", "--repeat", "1"], (1, 0.2)),
     "dynamic_ring": (["--figure", "{figures}/dynamic_ring.png"], ["--quick", "--repeat", "1"],
                      (15, 0.5)),
+    "run_overhead": ([], ["--cases", "ring", "billet fem", "--repeat", "1"], (2, 0.5)),
 }
 
 #: Python modules a script needs beyond the package's own dependencies; the

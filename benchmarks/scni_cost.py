@@ -12,8 +12,11 @@ the scene's Gauss+VCI integration and with ``discretization.integration =
   :data:`PARTS`: the material update (return map and consistent tangent),
   the force assembly (``F`` from the coefficients and ``∫ ∇̃Ψ · P``), the
   tangent (local products and scatter, stabilization added), the contact
-  (force and tangent), the linear solves, and the rest of the process
-  (kinematics, line search, output, setup, imports), in ms per Newton
+  (force and tangent), the linear solves, the start-up (interpreter and
+  imports, until the run starts), the setup (scene, mesh, basis:
+  ``runner.build``), the output after every step (checkpoint, fold
+  columns, history row) and the rest of the process (kinematics, the
+  rest of Newton and the line search, the folder), in ms per Newton
   iteration (all attempts).
 
 ``--source DIR`` runs the ``skfem_rkpm`` package in ``DIR`` instead (e.g.
@@ -48,7 +51,13 @@ PARTS = {
     "contact": [("mechanics.rigid_contact", "RigidContact", "evaluate"),
                 ("mechanics.surface_contact", "SurfaceContact", "evaluate")],
     "solve": [("solvers.newton", None, "solve_constrained")],
+    "setup": [("runs.runner", None, "build")],
+    "output": [("runs.runner", None, "save_checkpoint"), ("runs.runner", None, "fold_columns"),
+               ("runs.io", "HistoryFile", "append")],
 }
+#: the columns of the table, in ms per iteration (start-up: measured apart)
+COLUMNS = ("material", "force", "tangent", "contact", "solve", "start-up", "setup", "output",
+           "rest")
 
 #: runs ``skfem-rkpm`` (the arguments after the output path) with the
 #: functions of PARTS wrapped in CPU timers (only the outermost of nested
@@ -82,6 +91,7 @@ for part, functions in parts.items():
         target = m if owner is None else getattr(m, owner)
         if name in vars(target):
             setattr(target, name, timed(part, vars(target)[name], name == '_tangent_matrix'))
+seconds['start-up'] = time.process_time()  # the interpreter and the imports above
 try:
     runpy.run_module('skfem_rkpm.runs.cli', run_name='__main__')
 except SystemExit:
@@ -118,9 +128,9 @@ def main():
         os.environ["PYTHONPATH"] = os.path.abspath(args.source)
     print(f"load average at start: {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
     print("| scene | scheme | steps (cut-backs) | all iterations | whole run CPU s "
-          "(median; range) | SCNI / Gauss+VCI | material | force | tangent | contact "
-          "| solve | rest | material + force + tangent / Gauss+VCI |")
-    print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "(median; range) | SCNI / Gauss+VCI | " + " | ".join(COLUMNS)
+          + " | material + force + tangent / Gauss+VCI |")
+    print("|---|---|---|---:|---:|---:|" + "---:|" * (len(COLUMNS) + 1))
     with tempfile.TemporaryDirectory() as tmp:
         for case in args.cases:
             scene, settings = SCENES[case]
@@ -143,9 +153,7 @@ def main():
                 print(f"| {case} | {scheme} | {out['steps']} ({out['cut-backs']}) | {n} | "
                       f"{median:.2f} ({min(times):.2f}-{max(times):.2f}) | "
                       f"{median / reference[0]:.2f} | "
-                      + " | ".join(f"{ms[k]:.2f}" for k in
-                                   ("material", "force", "tangent", "contact", "solve",
-                                    "rest"))
+                      + " | ".join(f"{ms[k]:.2f}" for k in COLUMNS)
                       + f" | {core / reference[1]:.2f} |", flush=True)
     print(f"load average at end: {' '.join(f'{v:.1f}' for v in os.getloadavg())}")
 

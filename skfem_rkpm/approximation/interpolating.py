@@ -35,7 +35,6 @@ reported by :func:`~.shape.rk_shape_functions` with its usual message.
 """
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .kernels import get_kernel
 from .shape import (RCOND_MIN, ShapeTable, _batched_inverse, _dot, _kernel_weights,
@@ -64,6 +63,8 @@ def primitive_radius(nodes, radius):
     -------
     ndarray, shape (nnodes,)
     """
+    from scipy.spatial import cKDTree  # 0.1-0.15 s CPU to import: not on FEM runs
+
     if nodes.shape[1] < 2:
         return np.array(radius, dtype=float)
     distance, _ = cKDTree(nodes.T).query(nodes.T, k=2)
@@ -218,6 +219,8 @@ def shape_functions(*args, primitive=None, **kwargs):
 
 def _check_primitive(nodes, radius, primitive):
     """Refuse primitive radii that would break the Kronecker delta or locality."""
+    from scipy.spatial import cKDTree  # 0.1-0.15 s CPU to import: not on FEM runs
+
     bad = np.flatnonzero(~((primitive > 0) & (primitive <= radius)))
     if bad.size:
         I = bad[0]

@@ -20,7 +20,6 @@ for box supports), so the pairs are exactly those of the KD-tree search.
 """
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 __all__ = ["grouped_pairs", "group_pointers"]
 
@@ -57,6 +56,8 @@ def _norm(d, p):
 def _candidates(centre, spread, nodes, radius, p):
     """Particles within ``a_I + R_g`` of each group centre: sorted (group,
     particle) pairs as two arrays."""
+    from scipy.spatial import cKDTree  # 0.1-0.15 s CPU to import: not on FEM runs
+
     nnodes = len(nodes)
     tree = cKDTree(centre, balanced_tree=False)
     rmin = radius.min()

@@ -26,7 +26,6 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import brentq
 
 from .friction import ContactState
 from .loads import History
@@ -116,6 +115,8 @@ class ForceDrivenContact:
                 step *= 2.0
             if target == 0.0:
                 return lo  # apart: any travel without contact will do
+        from scipy.optimize import brentq  # 0.2 s to import: only force-driven runs need it
+
         return brentq(lambda s: self._push(d, t, s)[2] - target, lo, hi,
                       xtol=1e-14 * max(abs(lo), abs(hi), self.reach * 1e-6), rtol=1e-15)
 

@@ -14,14 +14,18 @@ in every cell of the basis's mesh (its corners, edges and interior; for the
 axisymmetric model with the hoop stretch ``F_θθ = 1 + u_r/R``) and
 :meth:`MapSampler.check` reports the worst point (:class:`MapValidity`).
 For RK functions the shape functions at the samples are built once (they
-live in material coordinates), so a check costs a few sparse products.
+live in material coordinates), so a check costs a few sparse products; for
+a vector finite element the scalar shape functions at the samples are kept
+and combined with the coefficients of each component, as scikit-fem's
+``interpolate`` does, without its passes over the zero components.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
+from skfem.element import ElementVector
 
-from .kinematics import MODELS, inverse_and_determinant
+from .kinematics import MODELS
 
 __all__ = ["MapSampler", "MapValidity", "reference_samples", "map_validity"]
 
@@ -132,7 +136,17 @@ class MapSampler:
             self._grads = [table.gradient_matrix(k).tocsr() for k in range(self.dim)]
         else:  # the element's own interpolation at the samples
             weights = np.full(self.per_cell, 1.0 / self.per_cell)
-            self._fem = type(basis)(mesh, basis.elem, quadrature=(ref, weights))
+            self._scalar = None
+            if isinstance(basis.elem, ElementVector) and basis.elem.dim == self.dim:
+                scalar = type(basis)(mesh, basis.elem.elem, quadrature=(ref, weights))
+                self._scalar = [(np.array(scalar.basis[j][0]), np.array(scalar.basis[j][0].grad))
+                                for j in range(scalar.Nbfun)]  # values, gradients
+                # the vector dof of scalar function j, component i: row dim * j + i
+                # (ElementVector numbers them so); the vector basis of all cells
+                self._dofs = type(basis)(mesh, basis.elem, quadrature=(
+                    ref[:, :1], weights[:1])).element_dofs
+            else:
+                self._fem = type(basis)(mesh, basis.elem, quadrature=(ref, weights))
 
     def _fields(self, d):
         """``u`` (dim, n) and ``∂u_i/∂X_k`` (dim, dim, n) at the samples."""
@@ -142,6 +156,15 @@ class MapSampler:
             u = np.array([self._values @ d[i::c] for i in range(c)])
             grad = np.array([[G @ d[i::c] for G in self._grads] for i in range(c)])
             return u, grad
+        if self._scalar is not None:  # Σ_j d_(j, i) φ_j, φ_j in the order of interpolate
+            n = self.X[0].size
+            u, grad = np.zeros((c,) + self.X.shape[1:]), np.zeros((c, c) + self.X.shape[1:])
+            for j, (phi, dphi) in enumerate(self._scalar):
+                for i in range(c):
+                    values = d[self._dofs[c * j + i]][:, None]
+                    u[i] += values * phi
+                    grad[i] += values * dphi
+            return u.reshape(c, n), grad.reshape(c, c, n)
         field = self._fem.interpolate(d)
         return (np.asarray(field).reshape(c, -1),
                 np.asarray(field.grad).reshape(c, c, -1))
@@ -150,15 +173,17 @@ class MapSampler:
         """``det F`` at the samples, shape (ncells, samples per cell), and
         the displacements there (dim, ncells, samples per cell)."""
         u, grad = self._fields(d)
-        n = u.shape[1]
-        F = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-        F[:, :self.dim, :self.dim] += np.moveaxis(grad, -1, 0)
+        # F = I + ∂u/∂X entry by entry, each entry an array over the samples
+        F = np.zeros((3, 3, u.shape[1]))
+        F[:self.dim, :self.dim] = grad
+        for i in range(3):
+            F[i, i] += 1.0
         if self.model == "axisymmetric":
             R = self.X[0].ravel()
             on_axis = np.abs(R) <= 1e-12 * max(np.abs(R).max(), 1.0)
             with np.errstate(divide="ignore", invalid="ignore"):
-                F[:, 2, 2] = np.where(on_axis, F[:, 0, 0], 1.0 + u[0] / R)
-        J = inverse_and_determinant(F)[1]
+                F[2, 2] = np.where(on_axis, F[0, 0], 1.0 + u[0] / R)
+        J = _determinant(F)
         return J.reshape(self.ncells, self.per_cell), u.reshape(self.X.shape)
 
     def check(self, d):
@@ -171,6 +196,15 @@ class MapSampler:
                            x=X + u[:, cell, k], folded_cells=np.flatnonzero(bad.any(axis=1)),
                            folded_points=int(bad.sum()), npoints=J.size, ncells=self.ncells,
                            kind=self.kind)
+
+
+def _determinant(f):
+    """``det F`` of 3x3 matrices ``f`` (3, 3, n), expanded along the first row
+    with the cofactors of :func:`~skfem_rkpm.mechanics.kinematics.inverse_and_determinant`
+    (the same operations, so the same values), without the inverse."""
+    return (f[0, 0] * (f[1, 1] * f[2, 2] - f[1, 2] * f[2, 1])
+            + f[0, 1] * (f[1, 2] * f[2, 0] - f[1, 0] * f[2, 2])
+            + f[0, 2] * (f[1, 0] * f[2, 1] - f[1, 1] * f[2, 0]))
 
 
 def map_validity(basis, d, model="plane_strain", per_axis=None):

@@ -8,11 +8,11 @@ they work in a new model which is removed afterwards, and the gmsh options
 they change are restored.
 """
 
+import importlib
 import threading
 from contextlib import contextmanager
 from pathlib import Path
 
-import gmsh
 import numpy as np
 import skfem
 
@@ -20,6 +20,20 @@ from ._cells import _check_kind, _make_mesh, _positive
 from .geo_check import check_geo
 
 __all__ = ["gmsh_rectangle", "gmsh_plate_with_hole", "from_gmsh", "load"]
+
+
+class _Deferred:
+    """A module imported at the first use of one of its attributes (gmsh
+    takes 20-40 ms CPU to import, which runs on built-in meshes need not pay)."""
+
+    def __init__(self, name):
+        self._name = name
+
+    def __getattr__(self, attribute):
+        return getattr(importlib.import_module(self._name), attribute)
+
+
+gmsh = _Deferred("gmsh")
 
 # gmsh element type numbers of first-order cells and lines
 _GMSH_LINE, _GMSH_TRI, _GMSH_QUAD, _GMSH_TET, _GMSH_HEX = 1, 2, 3, 4, 5

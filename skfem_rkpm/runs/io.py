@@ -20,7 +20,6 @@ import json
 import re
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from ..solvers.newton import StepRecord
@@ -311,6 +310,8 @@ class FieldWriter:
             points = np.zeros((mesh.nvertices, 3))
             points[:, : mesh.dim()] = mesh.p.T
             self._claim(self.folder / "mesh.h5")
+            import h5py  # imported when fields are written: 30 ms
+
             with atomic_path(self.folder / "mesh.h5") as tmp, h5py.File(tmp, "x") as f:
                 f["points"] = points
                 f["cells"] = xdmf_cells(mesh).astype(np.int64)
@@ -327,6 +328,8 @@ class FieldWriter:
             self.owner.claim(path, folder=folder)
 
     def _keep(self, last):
+        import h5py
+
         for file in sorted(self.folder.glob("step-*.h5")):
             match = re.fullmatch(r"step-(\d+)\.h5", file.name)
             if match is None or (self.owner is not None and not self.owner.owns(file)):
@@ -382,6 +385,8 @@ class FieldWriter:
         data = {"displacement": u, **fields}
         name = f"step-{step:06d}.h5"
         self._claim(self.folder / name)
+        import h5py
+
         with atomic_path(self.folder / name) as tmp, h5py.File(tmp, "x") as f:
             f.attrs["t"] = float(t)
             for key, value in data.items():

@@ -13,7 +13,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["BACKENDS", "BackendUnavailable", "available", "is_symmetric", "Solver"]
+__all__ = ["BACKENDS", "BackendUnavailable", "available", "installed", "is_symmetric", "Solver"]
 
 #: the backends, the Python module each needs and the extra that installs it
 BACKENDS = {
@@ -61,17 +61,21 @@ def _import_backend(name):
 
 def available():
     """Names of the backends that can be used here (``"auto"`` not included)."""
-    names = []
-    for name, (module, _) in BACKENDS.items():
-        if module is None:
-            names.append(name)
-            continue
-        try:
-            importlib.import_module(module)
-        except ImportError:
-            continue
-        names.append(name)
-    return names
+    return [name for name in BACKENDS if installed(name)]
+
+
+def installed(name):
+    """Whether backend ``name`` can be used here: its package imports (only
+    that one is imported, so that a run does not pay for the optional
+    packages it never uses: pyamg and cvxopt take 0.07 s CPU)."""
+    module = BACKENDS[name][0]
+    if module is None:
+        return True
+    try:
+        importlib.import_module(module)
+    except ImportError:
+        return False
+    return True
 
 
 def is_symmetric(A, rtol=1e-12):

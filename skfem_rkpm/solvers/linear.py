@@ -69,7 +69,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from .backend import (BACKENDS, BackendUnavailable, Solver, _canonical, _import_backend,
-                      _refine, available, is_symmetric)
+                      _refine, available, installed, is_symmetric)
 from .petsc import PETScGAMG, PETScLU
 from .reuse import REUSE_MODES, reusing
 
@@ -487,7 +487,23 @@ class Auto(Solver):
         self.newton_tol = None
         self._backends = {}
         self.current = None
-        self.installed = available()
+        self._installed = None  # the backends installed, listed at the first need
+
+    @property
+    def installed(self):
+        """Names of the backends installed (:func:`available`), listed when
+        first asked for (:meth:`choose` asks only for the ones it may pick)."""
+        if self._installed is None:
+            self._installed = available()
+        return self._installed
+
+    @installed.setter
+    def installed(self, names):
+        self._installed = list(names)
+
+    def _has(self, name):
+        """Backend ``name`` is installed (the list if known, else its package)."""
+        return name in self._installed if self._installed is not None else installed(name)
 
     def choose(self, A, spd=False):
         """The backend name for the matrix ``A`` (``spd``: the caller knows it
@@ -495,9 +511,9 @@ class Auto(Solver):
         n = A.shape[0]
         if n <= DENSE_LIMIT or (n <= DENSE_SIZE and A.nnz >= DENSE_FRACTION * n * n):
             return "dense"
-        if "pardiso" in self.installed and n > PARDISO_LIMIT:
+        if n > PARDISO_LIMIT and self._has("pardiso"):
             return "pardiso"
-        if spd and "cholmod" in self.installed:
+        if spd and self._has("cholmod"):
             sym = self.symmetric if self.symmetric is not None else is_symmetric(A)
             if sym:
                 return "cholmod"

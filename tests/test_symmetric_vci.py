@@ -177,12 +177,15 @@ def test_exact_gradients_computed_again_equal_those_of_the_build(interpolating):
     integration (the same shape functions, to round-off of their solves),
     on all cells and on a subset, and the corrected gradients are not the
     exact ones."""
+    import copy
+
     from skfem_rkpm.approximation.rk_base import EXACT_ON_DEMAND
 
     mesh = MeshTet.init_tensor(*(np.linspace(0, 1, 5),) * 3)
     sym = RKBasis(mesh, interpolating=interpolating, integration="vci_symmetric")
     gauss = RKBasis(mesh, interpolating=interpolating, integration="gauss")
     assert sym._exact_grads is EXACT_ON_DEMAND
+    assert copy.deepcopy(sym)._exact_grads is EXACT_ON_DEMAND  # the same marker
     cells = np.arange(1, mesh.nelements, 3)[::-1]  # a subset, not in order
     for a, b in ((sym.with_elements(cells), gauss.with_elements(cells)), (sym, gauss)):
         ta, tb = a.table, b.table

@@ -22,7 +22,17 @@ __all__ = ["RKBase", "EXACT_ON_DEMAND"]
 #: ``_exact_grads`` of a basis that keeps only its corrected gradients
 #: (``"vci_symmetric"``): the exact ones are computed again when a pair table
 #: with them is asked for (:meth:`RKBase._exact_pairs`)
-EXACT_ON_DEMAND = type("ExactOnDemand", (), {"__repr__": lambda self: "EXACT_ON_DEMAND"})()
+class _ExactOnDemand:
+    """The one value of :data:`EXACT_ON_DEMAND`, the same after copies."""
+
+    def __repr__(self):
+        return "EXACT_ON_DEMAND"
+
+    def __reduce__(self):
+        return "EXACT_ON_DEMAND"  # copies and pickles are the module's object
+
+
+EXACT_ON_DEMAND = _ExactOnDemand()
 
 
 class RKBase(AbstractBasis):

@@ -145,7 +145,7 @@ def symmetric_correction_cells(table, x, weights, phi, r, nodes, radius, nqp, ce
     for q0, q1 in point_blocks(table.indptr):
         lo, hi = table.indptr[q0], table.indptr[q1]
         rows, P, L = _frame(table, x, phi, nodes, radius, q0, q1, Linv[q0:q1])
-        nb, ph = q1 - q0, phi[lo:hi]
+        ph = phi[lo:hi]
         xc = np.take(xi, cols[lo:hi], axis=1)  # (dim, pairs)
         phiP = ph * P
         t = _point_sums(phiP[:, None, :] * xc[None, :, :], table.indptr[q0:q1] - lo)

@@ -376,18 +376,28 @@ class Assembler:
         """
         if self._pattern_parts()[0] is not None:
             return self.matrix(self.local_bilinear(C))
-        # local matrices block by block, each summed at once: none is kept
-        scatter, nnz, indptr, cols = self._pattern
         C, width = self._tangent_matrix(C)
         nloc_v = self.test_layout.element_nodes.shape[0]
-        data = np.zeros(nnz)
-        for s in self._blocks(nloc_v * width, SCATTER_ENTRIES):
+        step = self._block_step(self.test_layout.dim * self.layout.dx.shape[1] * width)
+
+        def local_of(s):
             local = np.empty((s.stop - s.start, nloc_v, width))
-            step = self._block_step(self.test_layout.dim * self.layout.dx.shape[1] * width)
             for start in range(s.start, s.stop, step):
                 b = slice(start, min(start + step, s.stop))
                 self._local_block(C, b, local[b.start - s.start:b.stop - s.start])
-            data += np.bincount(self._places(s), weights=local.ravel(), minlength=nnz)
+            return local
+
+        return self.streamed(local_of, nloc_v * width)
+
+    def streamed(self, local_of, entries_per_cell):
+        """Sum local matrices formed block by block of cells, none kept:
+        ``local_of(s)`` returns those of the cells ``s`` (a slice), in the
+        order of :meth:`matrix` (any shape with ``entries_per_cell`` entries
+        per cell).  The blocks follow each other in cell order."""
+        _, nnz, indptr, cols = self._pattern_parts()
+        data = np.zeros(nnz)
+        for s in self._blocks(entries_per_cell, SCATTER_ENTRIES):
+            data += np.bincount(self._places(s), weights=local_of(s).ravel(), minlength=nnz)
         return sp.csr_matrix((data, cols, indptr), shape=self.shape)
 
     def local_bilinear(self, C, out=None, rank_one=None):

@@ -18,6 +18,16 @@ MODES = {  # (DENSE_POSITIONS, STORED_ENTRIES, COMPACT_ENTRIES)
 }
 
 
+def use_mode(monkeypatch, mode, scatter_entries=None):
+    """Make new assemblers find their places the way ``mode`` of :data:`MODES`
+    says (and sum ``scatter_entries`` local entries per block if given)."""
+    for name, value in zip(("DENSE_POSITIONS", "STORED_ENTRIES", "COMPACT_ENTRIES"),
+                           MODES[mode]):
+        monkeypatch.setattr(assembly, name, value)
+    if scatter_entries is not None:
+        monkeypatch.setattr(assembly, "SCATTER_ENTRIES", scatter_entries)
+
+
 def coo_reference(A, local):
     """The local matrices (nelems, nloc, c, c, nloc) summed by scipy's COO
     conversion, rows and columns from the element dofs."""
@@ -53,11 +63,8 @@ def test_every_scatter_map_sums_the_coo_matrix(monkeypatch, name):
              L.element_nodes.shape[0])
     locals_ = [rng.normal(size=shape) for _ in range(3)]
     expected = [coo_reference(reference, local) for local in locals_]
-    for mode, (dense, stored, compact) in MODES.items():
-        monkeypatch.setattr(assembly, "DENSE_POSITIONS", dense)
-        monkeypatch.setattr(assembly, "STORED_ENTRIES", stored)
-        monkeypatch.setattr(assembly, "COMPACT_ENTRIES", compact)
-        monkeypatch.setattr(assembly, "SCATTER_ENTRIES", 997)  # several blocks
+    for mode in MODES:
+        use_mode(monkeypatch, mode, scatter_entries=997)  # several blocks
         A = Assembler(basis)
         kept = (A._pattern[0] is not None, A._compact is not None)
         assert kept == {"stored int32": (False, True), "table per block": (False, False)}.get(
@@ -85,3 +92,31 @@ def test_tangent_is_the_same_with_every_scatter_map(monkeypatch, name):
         monkeypatch.setattr(assembly, "COMPACT_ENTRIES", compact)
         K = Assembler(basis).bilinear(C)
         assert abs(K - expected).max() <= 1e-13 * abs(expected).max(), mode
+
+
+@pytest.mark.parametrize("name", ["RK 3D", "FEM Quad1 scalar"])
+def test_streamed_local_matrices_sum_the_coo_matrix(monkeypatch, name):
+    """``streamed`` (local matrices handed over block by block of cells, in
+    cell order) sums the matrix of the COO reference with every scatter map,
+    each block asked for once."""
+    basis = bases()[name]
+    rng = np.random.default_rng(5)
+    L = Assembler(basis).layout
+    nloc, nelems = L.element_nodes.shape
+    local = rng.normal(size=(nelems, nloc, L.ncomp, L.ncomp, nloc))
+    for mode in MODES:
+        use_mode(monkeypatch, mode, scatter_entries=50)  # several blocks
+        A = Assembler(basis)
+        asked = []
+
+        def local_of(s):
+            asked.append((s.start, s.stop))
+            return local[s]
+
+        K = A.streamed(local_of, local[0].size)
+        starts, stops = zip(*asked)
+        assert starts[0] == 0 and stops[-1] == nelems and starts[1:] == stops[:-1], mode
+        assert len(asked) > 1, mode
+        scale = np.abs(local).max() * nloc
+        assert abs(K - coo_reference(A, local)).max() <= 8 * np.finfo(float).eps * scale, mode
+        assert K.nnz == A.nnz

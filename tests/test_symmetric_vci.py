@@ -167,3 +167,34 @@ def test_elasticity_patch_test_3d():
     d = skfem_rkpm.solve(K, skfem_rkpm.asm(traction, basis.boundary()), basis,
                          D=D, x=exact[D])
     assert np.abs(basis.interpolate(d).grad - G[:, :, None, None]).max() < 1e-10
+
+
+@pytest.mark.parametrize("interpolating", [False, True])
+def test_exact_gradients_computed_again_equal_those_of_the_build(interpolating):
+    """A symmetric VCI basis keeps only its corrected gradients; the exact
+    ones (``basis.table``, ``interpolate``, ``with_elements``) are computed
+    again when asked: they equal those of the same basis with plain Gauss
+    integration (the same shape functions, to round-off of their solves),
+    on all cells and on a subset, and the corrected gradients are not the
+    exact ones."""
+    import copy
+
+    from skfem_rkpm.approximation.rk_base import EXACT_ON_DEMAND
+
+    mesh = MeshTet.init_tensor(*(np.linspace(0, 1, 5),) * 3)
+    sym = RKBasis(mesh, interpolating=interpolating, integration="vci_symmetric")
+    gauss = RKBasis(mesh, interpolating=interpolating, integration="gauss")
+    assert sym._exact_grads is EXACT_ON_DEMAND
+    assert copy.deepcopy(sym)._exact_grads is EXACT_ON_DEMAND  # the same marker
+    cells = np.arange(1, mesh.nelements, 3)[::-1]  # a subset, not in order
+    for a, b in ((sym.with_elements(cells), gauss.with_elements(cells)), (sym, gauss)):
+        ta, tb = a.table, b.table
+        np.testing.assert_array_equal(ta.indptr, tb.indptr)
+        np.testing.assert_array_equal(ta.indices, tb.indices)
+        scale = np.abs(tb.grads).max()
+        assert np.abs(ta.grads - tb.grads).max() <= 1e-12 * scale
+        assert np.abs(a.test_grads - ta.grads).max() > 1e-6 * scale  # corrected
+    assert not isinstance(sym._exact_grads, type(EXACT_ON_DEMAND))  # kept once computed
+    u = mesh.p[0] ** 2 - mesh.p[1] * mesh.p[2]
+    grad, expected = sym.interpolate(u).grad, gauss.interpolate(u).grad
+    assert np.abs(grad - expected).max() <= 1e-12 * np.abs(expected).max()

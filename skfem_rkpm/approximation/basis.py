@@ -27,7 +27,7 @@ from .integration import cell_geometry, facet_geometry, vci_gradients
 from .reduction import WHOLE
 from .element_particles import (DEFAULT_INTORDER, DEFAULT_SUPPORT, element_degree,
                                 element_particles, line_defaults, scalar_element)
-from .rk_base import RKBase
+from .rk_base import EXACT_ON_DEMAND, RKBase
 from ..meshes import local_spacing, mesh_vertices
 from .nodal_integration import (NODAL_SCHEMES, SMOOTHING_CELLS, boundary_rule,
                                nodal_quadrature)
@@ -358,19 +358,27 @@ class RKBasis(CellViews, RKBase):
             nodes.shape[0] if vector else 1), format="csr")
         del ntable
         cells = cell_layout.cell_particles(table, geometry.nelems, geometry.X.shape[-1])
+        # symmetric VCI: the corrected gradients serve trial and test functions;
+        # they are written over the exact ones, which are computed again if
+        # asked for (basis.table, interpolate)
+        on_demand = integration == "vci_symmetric" and order >= 1
         if integration in ("vci", "vci_symmetric"):
             corrected = vci_gradients(
                 table, xq, geometry.dx.ravel(), btable, xb,
                 boundary.dx.ravel(), boundary.normals.reshape(mesh.dim(), -1),
                 nodes, self.radius, order, kernel, support_shape, axisymmetric,
                 symmetric=integration == "vci_symmetric", reduction=reduction or WHOLE,
-                cells=(geometry.X.shape[-1], cells))
-            if corrected is not table.grads:  # order 0: nothing to correct
+                cells=(geometry.X.shape[-1], cells), overwrite=on_demand)
+            if on_demand:
+                table.test_grads, table.grads = corrected, None
+            elif corrected is not table.grads:  # order 0: nothing to correct
                 table.test_grads = corrected
             del corrected
         del btable
         table.kernel = None  # only VCI reads it: 8 bytes per pair
         self._setup(mesh, geometry, table, nodes, vector, release=True, cells=cells)
+        if on_demand:
+            self._exact_grads = EXACT_ON_DEMAND
         if part is None:
             self._restrict(elements)
         else:
@@ -403,6 +411,22 @@ class RKBasis(CellViews, RKBase):
                              pieces=bool(self.stabilization), smoothing=self.smoothing)
         self.nodal_quadrature = q
         self._setup(mesh, q.geometry, q.table, nodes, vector)
+
+    def _exact_pairs(self, rows=None):
+        """The shape table at the quadrature points ``rows`` (default all, in
+        the order of the basis's table) computed again: the exact gradients
+        of a ``"vci_symmetric"`` basis, which keeps only the corrected ones
+        (the same functions, the same arithmetic per point)."""
+        nqp = self.X.shape[-1]
+        points = np.arange(self.nelems * nqp) if rows is None else np.asarray(rows)
+        x = self.geometry.global_coordinates().reshape(self.nodes.shape[0], -1)[:, points]
+        cells = points[::nqp] // nqp
+        whole = len(points) % nqp == 0 and np.array_equal(
+            points, (cells[:, None] * nqp + np.arange(nqp)).ravel())
+        labels = None if self._regions is None else self._regions.points_of_cells(
+            self.geometry.tind, nqp)[points]
+        return self._shape_table(x, labels=labels, groups=group_pointers(
+            (len(cells), nqp)) if whole else None)
 
     def _shape_table(self, x, nodes=None, gradients=True, labels=None, groups=None):
         nodes = self.nodes if nodes is None else nodes

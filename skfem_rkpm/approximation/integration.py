@@ -98,7 +98,8 @@ def _pair_kernel(table, x, nodes, radius, kernel, support):
 
 def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                   nodes, radius, order, kernel="cubic", support="radial",
-                  axisymmetric=False, symmetric=False, reduction=WHOLE, cells=None):
+                  axisymmetric=False, symmetric=False, reduction=WHOLE, cells=None,
+                  overwrite=False):
     """Test-function gradients corrected for variational consistency.
 
     Parameters
@@ -138,6 +139,9 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
         (:func:`.cell_layout.cell_particles`): the symmetric correction is
         then formed block by block of points and its system assembled cell
         by cell (:mod:`.symmetric_cells`), the same correction.
+    overwrite : bool
+        ``symmetric``: add the correction to ``table.grads`` in place (the
+        exact gradients are not kept) instead of to a new array.
 
     Returns
     -------
@@ -193,13 +197,16 @@ def vci_gradients(table, x, weights, boundary_table, xb, wb, normals,
                              + (", axisymmetric" if axisymmetric else "")
                              + "); use integration='vci'")
         if cells is not None:
-            correction = symmetric_correction_cells(
+            return symmetric_correction_cells(
                 table, x, weights, phi, rhs[:, :, 0], nodes, radius, *cells,
-                solve=_pinned_spd_solve, frame=_affine_frame)
-            correction += table.grads
-            return correction
-        return table.grads + _symmetric_correction(table, x, weights, phi, rhs[:, :, 0],
-                                                   nodes, radius)
+                solve=_pinned_spd_solve, frame=_affine_frame,
+                grads=table.grads if overwrite else table.grads.copy())
+        correction = _symmetric_correction(table, x, weights, phi, rhs[:, :, 0], nodes,
+                                           radius)
+        if overwrite:
+            table.grads += correction
+            return table.grads
+        return table.grads + correction
     H = _weighted_kernel_matrix(kernel_matrix, p)
     Phi = kernel_matrix @ np.ones(nnodes)  # Φ_q = Σ_K φ_K(x_q)
     xi = _balanced_coefficients(H, Phi, weights, A, rhs, nodes, radius,

@@ -100,15 +100,19 @@ def _solve(H, lowered, phi, dphi, phat, dphat, inv_s, starts, counts, gradients)
         return values, None, rcond
     grads = np.empty(dphi.shape)
     for k, terms in enumerate(lowered):
-        dH = np.zeros_like(H)  # ∂H(ξ_I)/∂X_k, s frozen
-        for j, e, low in terms:
-            dH[j] = (e * inv_s) * H[low]
-        dHc = _dot(dH, cp)
-        # ∂r/∂X_k - ∂M/∂X_k c, summed over the pairs of each point
-        t = -(dH * phat + H * dphat[k]) - (dH * (Hc * phi) + H * (dHc * phi + Hc * dphi[k]))
-        ck = np.einsum("ijp,jp->ip", Minv, np.add.reduceat(t, starts, axis=1))
-        grads[k] = dphat[k] + (dHc + _dot(H, np.repeat(ck, counts, axis=1))) * phi \
-            + Hc * dphi[k]
+        # ∂H(ξ_I)/∂X_k, s frozen: nonzero in the rows j of the monomials with ξ_k
+        dH = [(j, (e * inv_s) * H[low]) for j, e, low in terms]
+        dHc = np.zeros(phi.shape)
+        for j, d in dH:
+            dHc += d * cp[j]
+        # g = ∂φ̂ + (∂Hᵀ c) φ + (Hᵀ c) ∂φ, and, with N_I = values,
+        # ∂M/∂X_k c - ∂r/∂X_k = Σ_I (∂H_I N_I + H_I g_I) summed over each point's pairs
+        g = dphat[k] + dHc * phi + Hc * dphi[k]
+        t = H * g
+        for j, d in dH:
+            t[j] += d * values
+        ck = -np.einsum("ijp,jp->ip", Minv, np.add.reduceat(t, starts, axis=1))
+        grads[k] = g + _dot(H, np.repeat(ck, counts, axis=1)) * phi
     return values, grads, rcond
 
 

@@ -17,7 +17,22 @@ from skfem.element import DiscreteField
 from . import cell_layout
 from ..forms import PairwiseLoopWarning, pairwise_loop_message, scikit_fem_caller
 
-__all__ = ["RKBase"]
+__all__ = ["RKBase", "EXACT_ON_DEMAND"]
+
+#: ``_exact_grads`` of a basis that keeps only its corrected gradients
+#: (``"vci_symmetric"``): the exact ones are computed again when a pair table
+#: with them is asked for (:meth:`RKBase._exact_pairs`)
+class _ExactOnDemand:
+    """The one value of :data:`EXACT_ON_DEMAND`, the same after copies."""
+
+    def __repr__(self):
+        return "EXACT_ON_DEMAND"
+
+    def __reduce__(self):
+        return "EXACT_ON_DEMAND"  # copies and pickles are the module's object
+
+
+EXACT_ON_DEMAND = _ExactOnDemand()
 
 
 class RKBase(AbstractBasis):
@@ -67,14 +82,28 @@ class RKBase(AbstractBasis):
         with its ``test_grads`` if ``test`` and the basis has corrected ones
         (VCI)."""
         entries, exact = self._entries(rows), self._exact_grads
-        laid_out = exact is None or exact.ndim == 4
+        laid_out = exact is None or (exact is not EXACT_ON_DEMAND and exact.ndim == 4)
         table = cell_layout.pair_table(
             entries, self.nodes.shape[1], self._cells, self.element_nodes, self.values,
             (self.grads if exact is None else exact) if laid_out else None,
             self.grads if test and exact is not None else None)
-        if not laid_out:  # the exact gradients, still pairs
+        if exact is EXACT_ON_DEMAND:
+            again = self._exact_pairs(rows)
+            if not (np.array_equal(again.indptr, table.indptr)
+                    and np.array_equal(again.indices, table.indices)):
+                raise RuntimeError("the shape functions computed again have other pairs "
+                                   "than the basis: its particles or supports changed")
+            table.grads = again.grads
+            if rows is None:  # kept from now on, as the exact gradients of a VCI basis
+                self._exact_grads = again.grads
+        elif not laid_out:  # the exact gradients, still pairs
             table.grads = exact[:, entries[1]]
         return table
+
+    def _exact_pairs(self, rows=None):
+        """The shape table at the quadrature points ``rows`` (default all)
+        computed again, for :data:`EXACT_ON_DEMAND`."""
+        raise NotImplementedError(f"{type(self).__name__} keeps its exact gradients")
 
     def _exact_layout(self):
         """The exact gradients of a VCI basis in the padded layout (dim, nloc,

@@ -309,14 +309,8 @@ class AugmentedFactored(Factored):
         f, g = np.asarray(f, dtype=float), np.asarray(g, dtype=float)
         apply = self.factors.solve if apply is None else apply
         K = self.canonical if K is None else K
-        columns = [(f, g)] if f.ndim == 1 else [(f[:, j], g[:, j])
-                                                for j in range(f.shape[1])]
-        pairs = [_refined_solve(apply, K, self.rho, fj, self.rows, gj, self.rtol,
-                                self.maxiter) for fj, gj in columns]
-        if f.ndim == 1:
-            return pairs[0]
-        return (np.column_stack([p[0] for p in pairs]),
-                np.column_stack([p[1] for p in pairs]))
+        return _per_column(lambda fj, gj: _refined_solve(apply, K, self.rho, fj, self.rows,
+                                                         gj, self.rtol, self.maxiter), f, g)
 
     def solve_changed(self, dK, rows, f, g):
         """``d, λ`` of ``(K + ΔK) d = f + Cᵀ λ``, ``C d = g`` with ``ΔK``
@@ -395,17 +389,24 @@ def _augmented_lagrangian(solver, backend, K, Krho, rho, f, C, g, rtol, maxiter)
             if explicit:
                 raise
             return None
-    columns = [(f, g)] if f.ndim == 1 else [(f[:, j], g[:, j]) for j in range(f.shape[1])]
-    pairs = []
-    for fj, gj in columns:
-        try:
-            pairs.append(_refined_solve(backend.solve, K, rho, fj, C, gj, rtol, maxiter))
-        except np.linalg.LinAlgError:
-            if explicit:
-                raise
-            return None
+    try:
+        return _per_column(lambda fj, gj: _refined_solve(backend.solve, K, rho, fj, C, gj,
+                                                         rtol, maxiter), f, g)
+    except np.linalg.LinAlgError:
+        if explicit:
+            raise
+        return None
+
+
+def _per_column(solve_one, f, g):
+    """``solve_one(f, g)`` -> ``(d, λ)`` (or None) for a 1-D ``f``; for 2-D
+    ``f`` and ``g`` once per column, the answers stacked as columns, or None
+    when one column's answer is None."""
     if f.ndim == 1:
-        return pairs[0]
+        return solve_one(f, g)
+    pairs = [solve_one(f[:, j], g[:, j]) for j in range(f.shape[1])]
+    if any(p is None for p in pairs):
+        return None
     return (np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs]))
 
 
@@ -419,13 +420,7 @@ ACCEPTED_BACKWARD_ERROR = 1e-10
 def _reused(backend, K, rho, f, C, g):
     """:func:`skfem_rkpm.solvers.reuse.saddle_point` for each column of ``f``
     and ``g``, or None when GMRES stalls on one of them."""
-    if f.ndim == 1:
-        return _reused_saddle_point(backend, K, rho, f, C, g)
-    pairs = [_reused_saddle_point(backend, K, rho, f[:, j], C, g[:, j])
-             for j in range(f.shape[1])]
-    if any(p is None for p in pairs):
-        return None
-    return (np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs]))
+    return _per_column(lambda fj, gj: _reused_saddle_point(backend, K, rho, fj, C, gj), f, g)
 
 
 def _refined_solve(solve, K, rho, f, C, g, rtol, maxiter, refinements=3):
